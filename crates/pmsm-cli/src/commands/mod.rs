@@ -1,0 +1,3 @@
+//! One module per subcommand of `pmsm`.
+
+pub mod plant;

@@ -1,0 +1,37 @@
+//! `pmsm`: the host tool of the sensorless PMSM drive library.
+
+use clap::{Parser, Subcommand};
+use pmsm_cli::commands;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "pmsm",
+    version,
+    about = "Sensorless PMSM drive: plant model, observers, simulation"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Integrate the motor model under a voltage sequence (CSV in, state CSV out).
+    Plant(commands::plant::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Plant(args) => commands::plant::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the context chain joined by ": ".
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

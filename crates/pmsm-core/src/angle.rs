@@ -1,0 +1,291 @@
+//! Electrical angle as a wrapping integer turn, and its sine and cosine.
+//!
+//! One turn is 2³² counts of an `i32`, so the representable range is [−π, π) and
+//! `wrapping_add` is exactly addition modulo 2π: angles are the one quantity of the core that
+//! wraps, on purpose. The difference of two angles is again an [`Angle`], the signed error in
+//! [−π, π).
+//!
+//! # sin/cos
+//!
+//! A quarter-wave table of 257 `Q2.30` values (1028 bytes of flash, computed at compile time)
+//! gives `sin a` and `cos a` at the nearest of 1024 points per turn; the remainder
+//! `δ ∈ [−π/1024, π/1024]` is applied by the angle-sum identity with `sin δ ≈ δ − δ³/6`,
+//! `cos δ ≈ 1 − δ²/2`, whose truncation (`δ⁴/24 ≈ 2e−11`) is below half an LSB of Q2.30.
+//! Cost: one table read pair and six 32×32→64 multiplies.
+//!
+//! Measured error against f64 over the whole input range: see `docs/PERFORMANCE.md`; the
+//! tests bound it at 3 LSB of Q2.30 (2.8e−9).
+
+use crate::num::{UNIT_FRAC, Unit, round_shift_sat};
+use core::ops::{Add, Neg, Sub};
+
+/// Electrical angle, one turn = 2³² (LSB = 2π/2³² ≈ 1.46e−9 rad), range [−π, π), wrapping.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Angle(pub i32);
+
+/// Sine and cosine of an angle, both Q2.30.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SinCos {
+    /// `sin θ`, Q2.30.
+    pub sin: Unit,
+    /// `cos θ`, Q2.30.
+    pub cos: Unit,
+}
+
+impl Angle {
+    /// Zero.
+    pub const ZERO: Self = Self(0);
+    /// Half a turn, π (the most negative value: −π and π are the same angle).
+    pub const PI: Self = Self(i32::MIN);
+    /// A quarter turn, π/2.
+    pub const HALF_PI: Self = Self(1 << 30);
+
+    /// Radians per count, 2π/2³².
+    pub const RAD_PER_LSB: f64 = core::f64::consts::TAU / 4_294_967_296.0;
+
+    /// From radians (any finite value; wraps to [−π, π)). NaN gives zero.
+    pub fn from_rad(rad: f64) -> Self {
+        let turns = rad / core::f64::consts::TAU;
+        let frac = turns - libm::floor(turns); // [0, 1)
+        if frac.is_nan() {
+            return Self::ZERO;
+        }
+        // Round to nearest count; 2^32 wraps to 0 through the u64 → u32 cast.
+        Self(libm::round(frac * 4_294_967_296.0) as u64 as u32 as i32)
+    }
+
+    /// From degrees (wraps).
+    pub fn from_deg(deg: f64) -> Self {
+        Self::from_rad(deg.to_radians())
+    }
+
+    /// In radians, [−π, π).
+    pub fn to_rad(self) -> f64 {
+        self.0 as f64 * Self::RAD_PER_LSB
+    }
+
+    /// In degrees, [−180, 180).
+    pub fn to_deg(self) -> f64 {
+        self.to_rad().to_degrees()
+    }
+
+    /// Sine and cosine, each within 3 LSB of Q2.30.
+    pub fn sin_cos(self) -> SinCos {
+        sin_cos(self)
+    }
+}
+
+impl Add for Angle {
+    type Output = Angle;
+    /// Addition modulo one turn.
+    #[inline(always)]
+    fn add(self, rhs: Angle) -> Angle {
+        Angle(self.0.wrapping_add(rhs.0))
+    }
+}
+
+impl Sub for Angle {
+    type Output = Angle;
+    /// Signed difference in [−π, π) (modulo one turn).
+    #[inline(always)]
+    fn sub(self, rhs: Angle) -> Angle {
+        Angle(self.0.wrapping_sub(rhs.0))
+    }
+}
+
+impl Neg for Angle {
+    type Output = Angle;
+    /// The opposite angle modulo one turn (−(−π) = −π).
+    #[inline(always)]
+    fn neg(self) -> Angle {
+        Angle(self.0.wrapping_neg())
+    }
+}
+
+/// Table points per quarter turn.
+const QUARTER_POINTS: usize = 256;
+/// Bits of the angle below the table index (32 − 2 quadrant bits − 8 index bits).
+const REM_BITS: u32 = 22;
+
+/// `sin(k · π/512)` for k = 0..=256 in Q2.30, computed at compile time.
+static SIN_TABLE: [i32; QUARTER_POINTS + 1] = sin_table();
+
+// Evaluated at compile time: a bad index would fail the build, it cannot panic at run time.
+#[allow(clippy::indexing_slicing)]
+const fn sin_table() -> [i32; QUARTER_POINTS + 1] {
+    let mut t = [0i32; QUARTER_POINTS + 1];
+    let mut k = 0;
+    while k <= QUARTER_POINTS {
+        let x = k as f64 * (core::f64::consts::FRAC_PI_2 / QUARTER_POINTS as f64);
+        let s = const_sin(x) * (1u64 << UNIT_FRAC) as f64;
+        // Round half up; s ≥ 0 here.
+        t[k] = (s + 0.5) as i32;
+        k += 1;
+    }
+    t
+}
+
+/// Taylor series of sin for 0 ≤ x ≤ π/2, accurate to f64 rounding (compile time only).
+const fn const_sin(x: f64) -> f64 {
+    let x2 = x * x;
+    let mut term = x;
+    let mut sum = x;
+    let mut n = 1.0;
+    while n < 40.0 {
+        term = -term * x2 / ((n + 1.0) * (n + 2.0));
+        sum += term;
+        n += 2.0;
+    }
+    sum
+}
+
+/// Table entry, clamped into range so the lookup can never panic.
+#[inline(always)]
+fn table(k: u32) -> i64 {
+    let k = if k as usize > QUARTER_POINTS {
+        QUARTER_POINTS
+    } else {
+        k as usize
+    };
+    match SIN_TABLE.get(k) {
+        Some(v) => *v as i64,
+        None => 0,
+    }
+}
+
+/// Sine and cosine of `angle` (see the module docs for the method and its error).
+pub fn sin_cos(angle: Angle) -> SinCos {
+    let turn = angle.0 as u32;
+    // Round to the nearest of 1024 points per turn; the remainder is signed.
+    let nearest = turn.wrapping_add(1 << (REM_BITS - 1)) >> REM_BITS; // 0..1024 (wraps)
+    let rem = turn.wrapping_sub(nearest << REM_BITS) as i32; // [−2^21, 2^21)
+    let quadrant = (nearest >> 8) & 3;
+    let k = nearest & 0xff;
+    // sin and cos of the table point within its quadrant, then rotate to the quadrant.
+    let (s0, c0) = (table(k), table(QUARTER_POINTS as u32 - k));
+    let (s_a, c_a) = match quadrant {
+        0 => (s0, c0),
+        1 => (c0, -s0),
+        2 => (-s0, -c0),
+        _ => (-c0, s0),
+    };
+    // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2.
+    // π/2 in Q2.30 (1686629713), product shifted by 30: δ has at most 1.6e6 counts.
+    const HALF_PI_Q30: i64 = 1_686_629_713;
+    let delta = round_shift_sat(rem as i64 * HALF_PI_Q30, UNIT_FRAC) as i64; // |δ| ≤ π/1024
+    let d2 = (delta * delta) >> UNIT_FRAC; // δ², Q2.30
+    const SIXTH_Q30: i64 = 178_956_971; // 1/6 in Q2.30
+    let d3_6 = (((d2 * delta) >> UNIT_FRAC) * SIXTH_Q30) >> UNIT_FRAC;
+    let sin_d = delta - d3_6;
+    let cos_d = (1i64 << UNIT_FRAC) - (d2 >> 1);
+    // sin(a+δ) = sin a cos δ + cos a sin δ; cos(a+δ) = cos a cos δ − sin a sin δ.
+    let sin = round_shift_sat(s_a * cos_d + c_a * sin_d, UNIT_FRAC);
+    let cos = round_shift_sat(c_a * cos_d - s_a * sin_d, UNIT_FRAC);
+    SinCos {
+        sin: Unit::from_bits(sin),
+        cos: Unit::from_bits(cos),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const LSB: f64 = 1.0 / (1u64 << UNIT_FRAC) as f64;
+
+    fn err_lsb(a: Angle) -> f64 {
+        let sc = sin_cos(a);
+        let x = a.to_rad();
+        let es = (sc.sin.to_bits() as f64 * LSB - libm::sin(x)).abs();
+        let ec = (sc.cos.to_bits() as f64 * LSB - libm::cos(x)).abs();
+        es.max(ec) / LSB
+    }
+
+    #[test]
+    fn table_endpoints_are_exact() {
+        assert_eq!(SIN_TABLE[0], 0);
+        assert_eq!(SIN_TABLE[QUARTER_POINTS], 1 << UNIT_FRAC);
+        assert_eq!(SIN_TABLE[QUARTER_POINTS / 2], 759_250_125); // round(2^30 / √2)
+    }
+
+    #[test]
+    fn cardinal_angles_are_exact() {
+        let one = Unit::from_bits(1 << UNIT_FRAC);
+        assert_eq!(
+            sin_cos(Angle::ZERO),
+            SinCos {
+                sin: Unit::ZERO,
+                cos: one
+            }
+        );
+        assert_eq!(
+            sin_cos(Angle::HALF_PI),
+            SinCos {
+                sin: one,
+                cos: Unit::ZERO
+            }
+        );
+        assert_eq!(
+            sin_cos(Angle::PI),
+            SinCos {
+                sin: Unit::ZERO,
+                cos: -one
+            }
+        );
+        assert_eq!(
+            sin_cos(-Angle::HALF_PI),
+            SinCos {
+                sin: -one,
+                cos: Unit::ZERO
+            }
+        );
+    }
+
+    #[test]
+    fn dense_sweep_within_three_lsb() {
+        // Every 2^12-th angle (2^20 points) plus the neighbours of every table boundary.
+        let mut worst: f64 = 0.0;
+        for k in 0..(1u32 << 20) {
+            worst = worst.max(err_lsb(Angle((k << 12) as i32)));
+        }
+        for k in 0..1024u32 {
+            for off in [-1i64, 0, 1] {
+                let t = ((k as i64) << REM_BITS) + (1 << (REM_BITS - 1)) + off;
+                worst = worst.max(err_lsb(Angle(t as u32 as i32)));
+            }
+        }
+        assert!(worst <= 3.0, "worst {worst} LSB");
+    }
+
+    #[test]
+    fn radians_round_trip() {
+        for deg in [
+            -720.0, -180.0, -90.0, -1.0, 0.0, 0.001, 45.0, 179.999, 180.0, 1e6,
+        ] {
+            let a = Angle::from_deg(deg);
+            let back = a.to_deg();
+            let diff = (back - deg).rem_euclid(360.0);
+            let diff = diff.min(360.0 - diff);
+            assert!(diff < 1e-6, "{deg} -> {back}");
+        }
+        assert_eq!(Angle::from_rad(f64::NAN), Angle::ZERO);
+        assert_eq!(Angle::from_rad(f64::INFINITY), Angle::ZERO);
+    }
+
+    #[test]
+    fn difference_is_signed_and_wraps() {
+        let a = Angle::from_deg(170.0);
+        let b = Angle::from_deg(-170.0);
+        assert!(((b - a).to_deg() - 20.0).abs() < 1e-6);
+        assert!(((a - b).to_deg() + 20.0).abs() < 1e-6);
+    }
+
+    proptest! {
+        #[test]
+        fn sin_cos_within_three_lsb(t in any::<i32>()) {
+            let e = err_lsb(Angle(t));
+            prop_assert!(e <= 3.0, "angle {} error {} LSB", t, e);
+        }
+    }
+}

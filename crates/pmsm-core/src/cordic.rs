@@ -1,0 +1,230 @@
+//! atan2 and vector magnitude without floating point or division: CORDIC in vectoring mode.
+//!
+//! The input vector is normalised so that its larger component lies in [2²⁸, 2²⁹) (a shift,
+//! no precision is lost for small vectors), turned into the right half-plane, and rotated
+//! toward the x axis by ±atan 2⁻ⁱ for i = 0..[`ITERATIONS`]. The accumulated rotation is the
+//! angle; the final x, times the CORDIC gain compensation K = Π 1/√(1 + 2⁻²ⁱ), is the
+//! magnitude. Headroom: |x| ≤ √2 · 2²⁹ · 1/K < 2³¹, so the iterations never overflow `i32`.
+//!
+//! Cost: shifts and adds only, one 32×32→64 multiply for the magnitude; no table but the
+//! `ITERATIONS` arctangents (computed at compile time). Error bounds are in the tests and
+//! `docs/PERFORMANCE.md`.
+
+use crate::angle::Angle;
+use crate::frames::AlphaBeta;
+use crate::num::{Pu, round_shift_sat};
+
+/// Rotations performed. The residual angle is at most atan 2⁻⁽ᴺ⁻¹⁾ plus rounding.
+pub const ITERATIONS: usize = 28;
+
+/// `atan(2^-i)` in turns · 2³², computed at compile time.
+static ATAN_TURNS: [u32; ITERATIONS] = atan_table();
+
+// Evaluated at compile time: a bad index would fail the build, it cannot panic at run time.
+#[allow(clippy::indexing_slicing)]
+const fn atan_table() -> [u32; ITERATIONS] {
+    let mut t = [0u32; ITERATIONS];
+    let mut i = 0;
+    while i < ITERATIONS {
+        let x = 1.0 / (1u64 << i) as f64;
+        let turns = const_atan(x) / core::f64::consts::TAU;
+        t[i] = (turns * 4_294_967_296.0 + 0.5) as u32;
+        i += 1;
+    }
+    t
+}
+
+/// atan for 0 < x ≤ 1 at f64 accuracy (compile time only): atan 1 = π/4 exactly, otherwise
+/// the alternating series, which converges for x ≤ 1/2 in under 60 terms.
+const fn const_atan(x: f64) -> f64 {
+    if x >= 1.0 {
+        return core::f64::consts::FRAC_PI_4;
+    }
+    let x2 = x * x;
+    let mut power = x;
+    let mut sum = 0.0;
+    let mut n = 0;
+    while n < 60 {
+        let term = power / (2 * n + 1) as f64;
+        sum = if n % 2 == 0 { sum + term } else { sum - term };
+        power *= x2;
+        n += 1;
+    }
+    sum
+}
+
+/// CORDIC gain compensation K = Π_{i<N} 1/√(1 + 2⁻²ⁱ) in Q1.31 (unsigned, K ≈ 0.6073).
+const K_Q31: i64 = cordic_gain_q31();
+
+const fn cordic_gain_q31() -> i64 {
+    // Product of cos(atan 2^-i) = 1/sqrt(1 + 4^-i); sqrt by Newton in f64 at compile time.
+    let mut k = 1.0f64;
+    let mut i = 0;
+    while i < ITERATIONS {
+        let v = 1.0 + 1.0 / ((1u64 << (2 * i)) as f64);
+        let mut r = 1.0;
+        let mut n = 0;
+        while n < 60 {
+            r = 0.5 * (r + v / r);
+            n += 1;
+        }
+        k /= r;
+        i += 1;
+    }
+    (k * 2_147_483_648.0 + 0.5) as i64
+}
+
+/// Magnitude and angle of a vector, from one CORDIC run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Polar {
+    /// `√(x² + y²)` in the input's format, saturated.
+    pub magnitude: Pu,
+    /// `atan2(y, x)`; zero for the zero vector.
+    pub angle: Angle,
+}
+
+/// Magnitude and angle of `(x, y)`, both in [`Pu`].
+pub fn polar(x: Pu, y: Pu) -> Polar {
+    let (x, y) = (x.to_bits(), y.to_bits());
+    let big = x.unsigned_abs().max(y.unsigned_abs());
+    if big == 0 {
+        return Polar {
+            magnitude: Pu::ZERO,
+            angle: Angle::ZERO,
+        };
+    }
+    // Bring the larger component into [2^28, 2^29): shift left (exact) or right (≤ 3 bits).
+    let lz = big.leading_zeros(); // 0..=31
+    let (mut x, mut y, left, right) = if lz >= 3 {
+        let s = lz - 3;
+        (x << s, y << s, s, 0)
+    } else {
+        let s = 3 - lz;
+        (x >> s, y >> s, 0, s)
+    };
+    // Right half-plane: a half-turn rotation is exact.
+    let mut z: u32 = 0;
+    if x < 0 {
+        x = -x;
+        y = -y;
+        z = 1 << 31;
+    }
+    let mut i = 0;
+    while i < ITERATIONS {
+        let (dx, dy) = (y >> i, x >> i);
+        let a = match ATAN_TURNS.get(i) {
+            Some(a) => *a,
+            None => 0,
+        };
+        if y > 0 {
+            x += dx;
+            y -= dy;
+            z = z.wrapping_add(a);
+        } else {
+            x -= dx;
+            y += dy;
+            z = z.wrapping_sub(a);
+        }
+        i += 1;
+    }
+    // x ≥ 0 here; scale by K, then undo the normalisation (left and right are exclusive).
+    let magnitude = round_shift_sat(x as i64 * K_Q31, 31 + left - right);
+    Polar {
+        magnitude: Pu::from_bits(magnitude),
+        angle: Angle(z as i32),
+    }
+}
+
+/// `atan2(y, x)` as an [`Angle`]; zero for the zero vector.
+pub fn atan2(y: Pu, x: Pu) -> Angle {
+    polar(x, y).angle
+}
+
+/// `|v|` of an αβ vector, saturated to the [`Pu`] range.
+pub fn magnitude(v: AlphaBeta) -> Pu {
+    polar(v.alpha, v.beta).magnitude
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::units::to_f64;
+    use proptest::prelude::*;
+
+    /// Angle error in LSB (2π/2³²) and magnitude error in LSB of Q8.24 against f64.
+    fn errors(x: i32, y: i32) -> (f64, f64) {
+        let (xf, yf) = (to_f64(Pu::from_bits(x)), to_f64(Pu::from_bits(y)));
+        let p = polar(Pu::from_bits(x), Pu::from_bits(y));
+        let exact_angle = Angle::from_rad(libm::atan2(yf, xf));
+        let angle_err = (p.angle - exact_angle).0.unsigned_abs() as f64;
+        let exact_mag = libm::hypot(xf, yf).min(to_f64(Pu::MAX));
+        let mag_err = (to_f64(p.magnitude) - exact_mag).abs() * (1u64 << 24) as f64;
+        (angle_err, mag_err)
+    }
+
+    /// Bound on the angle error in LSB (2π/2³²): 32 LSB = 4.7e-8 rad, for any non-zero
+    /// vector, because the normalisation shift is exact for small inputs.
+    fn angle_bound(_x: i32, _y: i32) -> f64 {
+        32.0
+    }
+
+    /// Bound on the magnitude error in LSB: 2 LSB plus 3e-8 relative (iteration rounding at
+    /// the normalised scale of 2^28).
+    fn mag_bound(x: i32, y: i32) -> f64 {
+        2.0 + 3e-8 * libm::hypot(x as f64, y as f64)
+    }
+
+    #[test]
+    fn axes_and_diagonals() {
+        let one = Pu::from_num(1);
+        let cases = [
+            (one, Pu::ZERO, 0.0),
+            (Pu::ZERO, one, 90.0),
+            (-one, Pu::ZERO, -180.0),
+            (Pu::ZERO, -one, -90.0),
+            (one, one, 45.0),
+            (-one, -one, -135.0),
+        ];
+        for (x, y, deg) in cases {
+            let p = polar(x, y);
+            assert!(
+                (p.angle - Angle::from_deg(deg)).0.unsigned_abs() < 16,
+                "{deg}"
+            );
+        }
+        assert_eq!(
+            polar(Pu::ZERO, Pu::ZERO),
+            Polar {
+                magnitude: Pu::ZERO,
+                angle: Angle::ZERO
+            }
+        );
+        let m = to_f64(polar(one, one).magnitude);
+        assert!((m - core::f64::consts::SQRT_2).abs() < 2e-7);
+    }
+
+    #[test]
+    fn extremes_saturate() {
+        let p = polar(Pu::MIN, Pu::MIN);
+        assert_eq!(p.magnitude, Pu::MAX);
+        assert!((p.angle - Angle::from_deg(-135.0)).0.unsigned_abs() < 16);
+        assert_eq!(polar(Pu::MAX, Pu::ZERO).magnitude.to_bits(), i32::MAX);
+        assert_eq!(polar(Pu::from_bits(1), Pu::ZERO).magnitude.to_bits(), 1);
+    }
+
+    proptest! {
+        #[test]
+        fn full_range_against_f64(x in any::<i32>(), y in any::<i32>()) {
+            let (ea, em) = errors(x, y);
+            prop_assert!(ea <= angle_bound(x, y), "angle error {} LSB", ea);
+            prop_assert!(em <= mag_bound(x, y), "magnitude error {} LSB", em);
+        }
+
+        #[test]
+        fn small_vectors_against_f64(x in -4096i32..4096, y in -4096i32..4096) {
+            let (ea, em) = errors(x, y);
+            prop_assert!(ea <= angle_bound(x, y), "angle error {} LSB", ea);
+            prop_assert!(em <= 2.0, "magnitude error {} LSB", em);
+        }
+    }
+}

@@ -1,0 +1,183 @@
+//! Reference frames as types, and the transforms between them (equations.md §1).
+//!
+//! - [`Abc`]: phase quantities.
+//! - [`AlphaBeta`]: stationary two-phase frame, amplitude-invariant (peak phase = |αβ|).
+//! - [`Dq`]: rotor frame, d along the magnet's north pole at electrical angle θ.
+//!
+//! All components are [`Pu`] (Q8.24). Every transform forms its sums of products in `i64`,
+//! rounds once and saturates, so no input can make it wrap.
+
+use crate::angle::SinCos;
+use crate::num::{Pu, dot_unit, round_shift_sat};
+
+/// Three phase quantities, per unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Abc {
+    /// Phase a.
+    pub a: Pu,
+    /// Phase b.
+    pub b: Pu,
+    /// Phase c.
+    pub c: Pu,
+}
+
+/// A vector in the stationary αβ frame, per unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AlphaBeta {
+    /// α component (along phase a).
+    pub alpha: Pu,
+    /// β component (90° ahead of α).
+    pub beta: Pu,
+}
+
+/// A vector in the rotor dq frame, per unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Dq {
+    /// d component (along the magnet flux).
+    pub d: Pu,
+    /// q component (90° ahead of d).
+    pub q: Pu,
+}
+
+/// 1/3 in Q1.31 (rounded).
+const ONE_THIRD_Q31: i64 = 715_827_883;
+/// 1/√3 in Q1.31 (rounded).
+const INV_SQRT3_Q31: i64 = 1_239_850_262;
+/// √3/2 in Q1.31 (rounded).
+const SQRT3_2_Q31: i64 = 1_859_775_393;
+
+/// Amplitude-invariant Clarke transform: `α = (2a − b − c)/3`, `β = (b − c)/√3`.
+///
+/// Within ½ LSB of exact; saturates (|β| can reach 1.15 × the largest phase value).
+pub fn clarke(x: Abc) -> AlphaBeta {
+    let (a, b, c) = (
+        x.a.to_bits() as i64,
+        x.b.to_bits() as i64,
+        x.c.to_bits() as i64,
+    );
+    AlphaBeta {
+        alpha: Pu::from_bits(round_shift_sat((2 * a - b - c) * ONE_THIRD_Q31, 31)),
+        beta: Pu::from_bits(round_shift_sat((b - c) * INV_SQRT3_Q31, 31)),
+    }
+}
+
+/// Clarke transform from two phases of a balanced set (`a + b + c = 0`):
+/// `α = a`, `β = (a + 2b)/√3`. This is what two current sensors give.
+pub fn clarke_balanced(a: Pu, b: Pu) -> AlphaBeta {
+    let (ai, bi) = (a.to_bits() as i64, b.to_bits() as i64);
+    AlphaBeta {
+        alpha: a,
+        beta: Pu::from_bits(round_shift_sat((ai + 2 * bi) * INV_SQRT3_Q31, 31)),
+    }
+}
+
+/// Inverse Clarke transform: `a = α`, `b = −α/2 + (√3/2) β`, `c = −α/2 − (√3/2) β`.
+pub fn inverse_clarke(v: AlphaBeta) -> Abc {
+    let (al, be) = (v.alpha.to_bits() as i64, v.beta.to_bits() as i64);
+    // Work in Q.31 of the input: −α/2 is exact there.
+    let half_alpha = -(al << 30);
+    let beta_term = be * SQRT3_2_Q31;
+    Abc {
+        a: v.alpha,
+        b: Pu::from_bits(round_shift_sat(half_alpha + beta_term, 31)),
+        c: Pu::from_bits(round_shift_sat(half_alpha - beta_term, 31)),
+    }
+}
+
+/// Park transform to the frame at angle θ: `d = α cos θ + β sin θ`, `q = −α sin θ + β cos θ`.
+pub fn park(v: AlphaBeta, sc: SinCos) -> Dq {
+    Dq {
+        d: dot_unit(v.alpha, sc.cos, v.beta, sc.sin),
+        q: dot_unit(v.beta, sc.cos, v.alpha, sc.sin.saturating_neg()),
+    }
+}
+
+/// Inverse Park transform: `α = d cos θ − q sin θ`, `β = d sin θ + q cos θ`.
+pub fn inverse_park(v: Dq, sc: SinCos) -> AlphaBeta {
+    AlphaBeta {
+        alpha: dot_unit(v.d, sc.cos, v.q, sc.sin.saturating_neg()),
+        beta: dot_unit(v.d, sc.sin, v.q, sc.cos),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::angle::Angle;
+    use crate::units::to_f64;
+    use proptest::prelude::*;
+
+    const LSB: f64 = 1.0 / (1u64 << 24) as f64;
+
+    fn pu(bits: i32) -> Pu {
+        Pu::from_bits(bits)
+    }
+
+    fn lsb_err(got: Pu, exact: f64) -> f64 {
+        let clamped = exact.clamp(to_f64(Pu::MIN), to_f64(Pu::MAX));
+        (to_f64(got) - clamped).abs() / LSB
+    }
+
+    proptest! {
+        /// Half an LSB of rounding plus the constant's error (1.6e−10 relative) times the
+        /// input, in LSB: at most 1.9 LSB over the whole range, 0.6 LSB within ±8 pu.
+        #[test]
+        fn clarke_against_f64(a in any::<i32>(), b in any::<i32>(), c in any::<i32>()) {
+            let (af, bf, cf) = (to_f64(pu(a)), to_f64(pu(b)), to_f64(pu(c)));
+            let v = clarke(Abc { a: pu(a), b: pu(b), c: pu(c) });
+            let sum = (2.0 * a as f64 - b as f64 - c as f64).abs();
+            prop_assert!(lsb_err(v.alpha, (2.0 * af - bf - cf) / 3.0) <= 0.5 + 1.6e-10 * sum);
+            let diff = (b as f64 - c as f64).abs();
+            prop_assert!(lsb_err(v.beta, (bf - cf) / 3f64.sqrt()) <= 0.5 + 1.6e-10 * diff);
+        }
+
+        #[test]
+        fn clarke_balanced_matches_full(a in -1i32 << 29..1 << 29, b in -1i32 << 29..1 << 29) {
+            let c = -(a as i64) - b as i64;
+            prop_assume!(c.abs() < 1 << 31);
+            let full = clarke(Abc { a: pu(a), b: pu(b), c: pu(c as i32) });
+            let two = clarke_balanced(pu(a), pu(b));
+            prop_assert_eq!(two.alpha, full.alpha);
+            prop_assert!((two.beta.to_bits() - full.beta.to_bits()).abs() <= 1);
+        }
+
+        /// Half an LSB plus the error of √3/2 in Q1.31 (2.1e−10 relative): below 1 LSB.
+        #[test]
+        fn inverse_clarke_within_one_lsb(al in any::<i32>(), be in any::<i32>()) {
+            let (x, y) = (to_f64(pu(al)), to_f64(pu(be)));
+            let v = inverse_clarke(AlphaBeta { alpha: pu(al), beta: pu(be) });
+            let k = 3f64.sqrt() / 2.0;
+            prop_assert_eq!(v.a, pu(al));
+            let bound = 0.5 + 2.1e-10 * (be as f64).abs();
+            prop_assert!(lsb_err(v.b, -x / 2.0 + k * y) <= bound);
+            prop_assert!(lsb_err(v.c, -x / 2.0 - k * y) <= bound);
+        }
+
+        /// Park and inverse Park against f64 with the exact sin/cos of the angle: the bound is
+        /// half an LSB of rounding plus the sin/cos error (3 LSB of Q2.30) times |v|.
+        #[test]
+        fn park_pair_against_f64(x in any::<i32>(), y in any::<i32>(), t in any::<i32>()) {
+            let (xf, yf) = (to_f64(pu(x)), to_f64(pu(y)));
+            let th = Angle(t).to_rad();
+            let (s, c) = (libm::sin(th), libm::cos(th));
+            let sc = Angle(t).sin_cos();
+            let bound = 0.5 + 1e-6 + 2.0 * 3.0 * (xf.abs() + yf.abs()) / 64.0;
+            let dq = park(AlphaBeta { alpha: pu(x), beta: pu(y) }, sc);
+            prop_assert!(lsb_err(dq.d, xf * c + yf * s) <= bound);
+            prop_assert!(lsb_err(dq.q, -xf * s + yf * c) <= bound);
+            let ab = inverse_park(Dq { d: pu(x), q: pu(y) }, sc);
+            prop_assert!(lsb_err(ab.alpha, xf * c - yf * s) <= bound);
+            prop_assert!(lsb_err(ab.beta, xf * s + yf * c) <= bound);
+        }
+
+        /// Park then inverse Park returns the vector within 2 LSB for signals up to 8 pu.
+        #[test]
+        fn park_round_trip(x in -1i32 << 27..1 << 27, y in -1i32 << 27..1 << 27, t in any::<i32>()) {
+            let sc = Angle(t).sin_cos();
+            let v = AlphaBeta { alpha: pu(x), beta: pu(y) };
+            let back = inverse_park(park(v, sc), sc);
+            prop_assert!((back.alpha.to_bits() - x).abs() <= 2);
+            prop_assert!((back.beta.to_bits() - y).abs() <= 2);
+        }
+    }
+}

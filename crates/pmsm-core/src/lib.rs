@@ -1,0 +1,42 @@
+//! Fixed-point sensorless field-oriented control of permanent-magnet synchronous motors.
+//!
+//! `no_std`, no allocation, no floating point on the control path. Configuration is computed
+//! once in `f64` from SI parameters ([`params`]) into per-unit fixed-point coefficients
+//! ([`units`]); the hot path is integer arithmetic on the formats of [`num`], which saturates
+//! instead of wrapping. Angles are wrapping integer turns ([`angle`]).
+//!
+//! | module | contents |
+//! |---|---|
+//! | [`num`] | Q formats (`Pu` = Q8.24, `Unit` = Q2.30), rounding, saturating products |
+//! | [`angle`] | `Angle` (one turn = 2³²), sin/cos |
+//! | [`cordic`] | atan2 and magnitude by CORDIC |
+//! | [`frames`] | `Abc`, `AlphaBeta`, `Dq`; Clarke, Park and their inverses |
+//! | [`units`] | per-unit bases from motor and inverter, the supported envelope |
+//! | [`params`] | motor and inverter parameters (SI) and their validation |
+#![no_std]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing,
+        clippy::unreachable,
+        clippy::todo
+    )
+)]
+
+pub mod angle;
+pub mod cordic;
+pub mod error;
+pub mod frames;
+pub mod num;
+pub mod params;
+pub mod units;
+
+pub use angle::{Angle, SinCos};
+pub use error::ConfigError;
+pub use frames::{Abc, AlphaBeta, Dq};
+pub use num::{Pu, Unit};
+pub use params::{InverterParams, MotorParams, ParamError};
+pub use units::PerUnit;

@@ -1,0 +1,144 @@
+//! Fixed-point formats of the core and the few integer kernels everything else is built on.
+//!
+//! # Conventions
+//!
+//! | type | format | range | LSB | used for |
+//! |---|---|---|---|---|
+//! | [`Pu`] | Q8.24 in `i32` | [−128, 128) | 2⁻²⁴ ≈ 5.96e−8 | every per-unit signal and most coefficients |
+//! | [`Unit`] | Q2.30 in `i32` | [−2, 2) | 2⁻³⁰ ≈ 9.31e−10 | sin, cos, unit vectors (±1 exact) |
+//! | [`Angle`](crate::angle::Angle) | `i32` turn | one turn = 2³² | 2π/2³² ≈ 1.46e−9 rad | electrical angle, wraps by design |
+//!
+//! Per-unit values are relative to the bases of [`crate::units::PerUnit`]; with those bases
+//! a healthy drive keeps its signals within a few per-unit, so Q8.24 leaves a 30× headroom
+//! for transients and intermediate sums while resolving 6e−8 of rated current or voltage
+//! (the precision integrators need at 20 kHz). Products are formed in `i64`, rounded to
+//! nearest (ties up) and saturated: nothing on the control path wraps, except angles.
+
+pub use fixed::types::{I2F30, I8F24};
+
+/// Per-unit signal: Q8.24, range [−128, 128), LSB 2⁻²⁴.
+pub type Pu = I8F24;
+
+/// Unit-range quantity (sin, cos, components of a unit vector): Q2.30, range [−2, 2), LSB 2⁻³⁰.
+pub type Unit = I2F30;
+
+/// Fractional bits of [`Pu`].
+pub const PU_FRAC: u32 = 24;
+/// Fractional bits of [`Unit`].
+pub const UNIT_FRAC: u32 = 30;
+
+/// Rounds `x / 2^shift` to nearest (ties toward +∞) and saturates to `i32`.
+///
+/// `shift` must be in 1..=62; this is a `const` contract of every caller in the crate.
+#[inline(always)]
+pub const fn round_shift_sat(x: i64, shift: u32) -> i32 {
+    let rounded = (x >> shift) + ((x >> (shift - 1)) & 1);
+    sat_i32(rounded)
+}
+
+/// Saturates an `i64` to the `i32` range.
+#[inline(always)]
+pub const fn sat_i32(x: i64) -> i32 {
+    if x > i32::MAX as i64 {
+        i32::MAX
+    } else if x < i32::MIN as i64 {
+        i32::MIN
+    } else {
+        x as i32
+    }
+}
+
+/// `a · b` for two [`Pu`] values, rounded to nearest and saturated.
+#[inline(always)]
+pub fn mul(a: Pu, b: Pu) -> Pu {
+    Pu::from_bits(round_shift_sat(
+        a.to_bits() as i64 * b.to_bits() as i64,
+        PU_FRAC,
+    ))
+}
+
+/// `a · u` for a [`Pu`] signal and a [`Unit`] factor, rounded to nearest and saturated.
+#[inline(always)]
+pub fn mul_unit(a: Pu, u: Unit) -> Pu {
+    Pu::from_bits(round_shift_sat(
+        a.to_bits() as i64 * u.to_bits() as i64,
+        UNIT_FRAC,
+    ))
+}
+
+/// `a · u + b · v` with a single rounding, saturated (the kernel of Park's rotation).
+#[inline(always)]
+pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
+    let acc = a.to_bits() as i64 * u.to_bits() as i64 + b.to_bits() as i64 * v.to_bits() as i64;
+    Pu::from_bits(round_shift_sat(acc, UNIT_FRAC))
+}
+
+/// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).
+///
+/// For configuration and host code; the control path never touches floats.
+pub fn pu_from_f64(x: f64) -> Pu {
+    Pu::from_bits(f64_to_bits_sat(x, PU_FRAC))
+}
+
+/// Converts a float to [`Unit`], rounding to nearest and saturating (NaN gives 0).
+pub fn unit_from_f64(x: f64) -> Unit {
+    Unit::from_bits(f64_to_bits_sat(x, UNIT_FRAC))
+}
+
+/// `round(x · 2^frac)` saturated to `i32`; NaN maps to 0.
+pub fn f64_to_bits_sat(x: f64, frac: u32) -> i32 {
+    let scaled = libm::round(x * (1u64 << frac) as f64);
+    if scaled.is_nan() {
+        0
+    } else if scaled >= i32::MAX as f64 {
+        i32::MAX
+    } else if scaled <= i32::MIN as f64 {
+        i32::MIN
+    } else {
+        scaled as i32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn to_f64(x: Pu) -> f64 {
+        x.to_bits() as f64 / (1u64 << PU_FRAC) as f64
+    }
+
+    #[test]
+    fn rounding_is_to_nearest() {
+        // 1.5 LSB rounds up to 2, -1.5 LSB to -1 (ties toward +inf), 1.49 down.
+        assert_eq!(round_shift_sat(3, 1), 2);
+        assert_eq!(round_shift_sat(-3, 1), -1);
+        assert_eq!(round_shift_sat(0b1011, 2), 3);
+        assert_eq!(round_shift_sat(0b1001, 2), 2);
+    }
+
+    #[test]
+    fn products_saturate_instead_of_wrapping() {
+        let big = Pu::from_num(100);
+        assert_eq!(mul(big, big), Pu::MAX);
+        assert_eq!(mul(big, -big), Pu::MIN);
+        assert_eq!(mul_unit(Pu::MIN, Unit::from_bits(i32::MIN)), Pu::MAX);
+        assert_eq!(pu_from_f64(1e9), Pu::MAX);
+        assert_eq!(pu_from_f64(-1e9), Pu::MIN);
+        assert_eq!(pu_from_f64(f64::NAN), Pu::ZERO);
+    }
+
+    proptest! {
+        #[test]
+        fn mul_within_half_lsb_of_exact(a in any::<i32>(), b in any::<i32>()) {
+            let (a, b) = (Pu::from_bits(a), Pu::from_bits(b));
+            let exact = to_f64(a) * to_f64(b);
+            let got = mul(a, b);
+            if exact.abs() < 127.9 {
+                prop_assert!((to_f64(got) - exact).abs() <= 0.5 / (1u64 << PU_FRAC) as f64);
+            } else {
+                prop_assert_eq!(got, if exact > 0.0 { Pu::MAX } else { Pu::MIN });
+            }
+        }
+    }
+}

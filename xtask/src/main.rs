@@ -1,0 +1,42 @@
+//! Project automation.
+//!
+//! - `cargo xtask perf`: measures and rewrites `docs/PERFORMANCE.md` (accuracy of the
+//!   fixed-point numerics against f64, speed of the plant model).
+//! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
+
+mod accuracy;
+mod examples;
+mod plant_speed;
+
+use anyhow::{Result, bail};
+use std::path::PathBuf;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn main() -> Result<()> {
+    let task = std::env::args().nth(1).unwrap_or_default();
+    match task.as_str() {
+        "perf" => perf(),
+        "examples" => examples::write_all(&root().join("examples")),
+        _ => bail!("usage: cargo xtask perf | examples"),
+    }
+}
+
+fn perf() -> Result<()> {
+    let mut doc = String::new();
+    doc.push_str(
+        "# Performance\n\n\
+         Regenerate with `cargo xtask perf` (release build, a few minutes on 2 cores). \
+         Every figure below is measured by that command; none is typed by hand.\n\n",
+    );
+    eprintln!("measuring the accuracy of the fixed-point numerics ...");
+    doc.push_str(&accuracy::section());
+    eprintln!("measuring the speed of the plant model ...");
+    doc.push_str(&plant_speed::section()?);
+    let path = root().join("docs/PERFORMANCE.md");
+    std::fs::write(&path, doc)?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
