@@ -69,6 +69,12 @@ impl Angle {
         self.to_rad().to_degrees()
     }
 
+    /// The angle in radians as Q2.30, for small angles (|θ| < 2 rad; saturates beyond).
+    pub fn to_rad_unit(self) -> Unit {
+        // rad = counts · 2π/2^32, so Q2.30 bits = counts · π/2.
+        Unit::from_bits(round_shift_sat(self.0 as i64 * HALF_PI_Q30, UNIT_FRAC))
+    }
+
     /// Sine and cosine, each within 3 LSB of Q2.30.
     pub fn sin_cos(self) -> SinCos {
         sin_cos(self)
@@ -101,6 +107,9 @@ impl Neg for Angle {
         Angle(self.0.wrapping_neg())
     }
 }
+
+/// π/2 in Q2.30 (rounded): radians per angle count, times 2^30 · 2^32 / 2^32.
+const HALF_PI_Q30: i64 = 1_686_629_713;
 
 /// Table points per quarter turn.
 const QUARTER_POINTS: usize = 256;
@@ -169,9 +178,7 @@ pub fn sin_cos(angle: Angle) -> SinCos {
         2 => (-s0, -c0),
         _ => (-c0, s0),
     };
-    // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2.
-    // π/2 in Q2.30 (1686629713), product shifted by 30: δ has at most 1.6e6 counts.
-    const HALF_PI_Q30: i64 = 1_686_629_713;
+    // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2; |δ| ≤ π/1024.
     let delta = round_shift_sat(rem as i64 * HALF_PI_Q30, UNIT_FRAC) as i64; // |δ| ≤ π/1024
     let d2 = (delta * delta) >> UNIT_FRAC; // δ², Q2.30
     const SIXTH_Q30: i64 = 178_956_971; // 1/6 in Q2.30

@@ -19,6 +19,18 @@ pub enum ConfigError {
         /// Largest supported value.
         max: f64,
     },
+    /// A gain (named by its key) outside the range where the discrete algorithm is stable
+    /// and representable at the chosen sample rate.
+    Gain {
+        /// The key of the gain, as in a scenario file or on the command line.
+        key: &'static str,
+        /// Its value.
+        value: f64,
+        /// Smallest accepted value.
+        min: f64,
+        /// Largest accepted value.
+        max: f64,
+    },
 }
 
 impl From<ParamError> for ConfigError {
@@ -39,6 +51,16 @@ impl fmt::Display for ConfigError {
             } => write!(
                 f,
                 "{quantity} = {value:.3e} is outside the supported envelope [{min:.3e}, {max:.3e}]"
+            ),
+            ConfigError::Gain {
+                key,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "`{key}` = {value} is outside [{min:.4e}, {max:.4e}], where the discrete \
+                 algorithm is stable at this sample rate"
             ),
         }
     }

@@ -100,6 +100,22 @@ pub fn inverse_park(v: Dq, sc: SinCos) -> AlphaBeta {
     }
 }
 
+/// Rotates a stationary vector by the angle of `sc` (counter-clockwise).
+#[inline]
+pub fn rotate(v: AlphaBeta, sc: SinCos) -> AlphaBeta {
+    let r = inverse_park(
+        Dq {
+            d: v.alpha,
+            q: v.beta,
+        },
+        sc,
+    );
+    AlphaBeta {
+        alpha: r.alpha,
+        beta: r.beta,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

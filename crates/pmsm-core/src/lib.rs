@@ -13,6 +13,7 @@
 //! | [`frames`] | `Abc`, `AlphaBeta`, `Dq`; Clarke, Park and their inverses |
 //! | [`units`] | per-unit bases from motor and inverter, the supported envelope |
 //! | [`params`] | motor and inverter parameters (SI) and their validation |
+//! | [`observer`] | the `Estimator` interface and the estimators (NLO, AO, MRAS) |
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -31,6 +32,7 @@ pub mod cordic;
 pub mod error;
 pub mod frames;
 pub mod num;
+pub mod observer;
 pub mod params;
 pub mod units;
 

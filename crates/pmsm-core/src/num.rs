@@ -73,6 +73,86 @@ pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
     Pu::from_bits(round_shift_sat(acc, UNIT_FRAC))
 }
 
+/// A constant factor with its own binary point: `value = mantissa · 2^−shift`.
+///
+/// Coefficients of the core span many decades across the motor envelope (`Ts·R/L` can be
+/// 1e−5, `L/(Ts·R)` 1e4), more than one Q format holds with precision. A `Gain` keeps 30–31
+/// significant bits whatever the magnitude: [`Gain::new`] picks the shift once in the
+/// configuration, and [`Gain::apply`] is one 32×32→64 multiply and a rounding shift.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Gain {
+    mantissa: i32,
+    shift: u32,
+}
+
+impl Gain {
+    /// Zero gain.
+    pub const ZERO: Self = Self {
+        mantissa: 0,
+        shift: 1,
+    };
+
+    /// The gain closest to `value`, or `None` if it is not finite or its magnitude is
+    /// outside [2⁻³⁰, 2³⁰) (zero is accepted).
+    pub fn new(value: f64) -> Option<Self> {
+        if !value.is_finite() {
+            return None;
+        }
+        if value == 0.0 {
+            return Some(Self::ZERO);
+        }
+        let mag = libm::fabs(value);
+        if !(libm::ldexp(1.0, -30)..=libm::ldexp(1.0, 30)).contains(&mag) {
+            return None;
+        }
+        // Largest shift that keeps |mantissa| < 2^31, capped to 62 (the product shift).
+        let exponent = libm::ilogb(mag); // mag in [2^e, 2^(e+1))
+        let mut shift = (30 - exponent).clamp(1, 62) as u32;
+        let mut m = libm::round(libm::ldexp(value, shift as i32));
+        if libm::fabs(m) >= 2_147_483_648.0 && shift > 1 {
+            // Rounded up to 2^31: one bit less.
+            shift -= 1;
+            m = libm::round(libm::ldexp(value, shift as i32));
+        }
+        if m > i32::MAX as f64 || m < i32::MIN as f64 {
+            return None;
+        }
+        Some(Self {
+            mantissa: m as i32,
+            shift,
+        })
+    }
+
+    /// The gain `mantissa · 2^−shift` (`shift` clamped to 1..=62).
+    pub(crate) const fn from_raw(mantissa: i32, shift: u32) -> Self {
+        let shift = if shift < 1 {
+            1
+        } else if shift > 62 {
+            62
+        } else {
+            shift
+        };
+        Self { mantissa, shift }
+    }
+
+    /// The gain's value as a float (exact).
+    pub fn to_f64(self) -> f64 {
+        libm::ldexp(self.mantissa as f64, -(self.shift as i32))
+    }
+
+    /// `gain · x` for a signal in any Q format, in the same format; rounded, saturated.
+    #[inline(always)]
+    pub fn apply_bits(self, x: i32) -> i32 {
+        round_shift_sat(x as i64 * self.mantissa as i64, self.shift)
+    }
+
+    /// `gain · x` for a [`Pu`] signal, rounded to nearest and saturated.
+    #[inline(always)]
+    pub fn apply(self, x: Pu) -> Pu {
+        Pu::from_bits(self.apply_bits(x.to_bits()))
+    }
+}
+
 /// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).
 ///
 /// For configuration and host code; the control path never touches floats.
@@ -128,7 +208,32 @@ mod tests {
         assert_eq!(pu_from_f64(f64::NAN), Pu::ZERO);
     }
 
+    #[test]
+    fn gains_keep_thirty_bits_across_decades() {
+        for v in [
+            1e-9, -3.7e-6, 0.001234, 0.5, -1.0, 3.0, 268.4, 16384.0, -1e9,
+        ] {
+            let g = Gain::new(v).unwrap();
+            assert!(((g.to_f64() - v) / v).abs() < 1e-9, "{v}");
+        }
+        assert_eq!(Gain::new(0.0), Some(Gain::ZERO));
+        assert_eq!(Gain::new(f64::NAN), None);
+        assert_eq!(Gain::new(1e10), None);
+        assert_eq!(Gain::new(1e-10), None);
+        assert_eq!(Gain::new(1e6).unwrap().apply(Pu::from_num(1)), Pu::MAX);
+    }
+
     proptest! {
+        #[test]
+        fn gain_within_half_lsb_plus_relative(v in -1e4f64..1e4, x in any::<i32>()) {
+            let g = Gain::new(v).unwrap();
+            let exact = x as f64 * g.to_f64();
+            let got = g.apply_bits(x) as f64;
+            if exact.abs() < 2.1e9 {
+                prop_assert!((got - exact).abs() <= 0.5 + 1e-9);
+            }
+        }
+
         #[test]
         fn mul_within_half_lsb_of_exact(a in any::<i32>(), b in any::<i32>()) {
             let (a, b) = (Pu::from_bits(a), Pu::from_bits(b));

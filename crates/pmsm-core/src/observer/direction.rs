@@ -1,0 +1,80 @@
+//! Direction of rotation from the sense in which an EMF vector turns.
+//!
+//! `|ê|` gives only the magnitude of the speed (seed 000 eq. 12, 20); its sign is the sense in
+//! which `ê` turns. The angle step `Δφ` of a (filtered) EMF vector between samples is averaged
+//! by a first-order filter of time constant [`TIME_CONSTANT_S`]; the direction flips when the
+//! mean step exceeds a threshold of the other sign (hysteresis), so noise at standstill does
+//! not toggle it. Through a reversal the EMF shrinks to zero and reappears turned by half a
+//! turn: a step larger than a quarter turn is that flip, not a rotation, and is ignored.
+
+use crate::angle::Angle;
+use crate::num::sat_i32;
+
+/// Time constant of the mean angle step, s.
+pub const TIME_CONSTANT_S: f64 = 2e-3;
+/// Speed, as a fraction of the base speed, that the mean step must exceed to flip.
+pub const THRESHOLD_PU: f64 = 0.002;
+
+/// Fractional bits of the filtered step (kept in `i64` to average sub-LSB steps).
+const FRAC: u32 = 16;
+
+/// Tracks the direction of rotation of an EMF vector.
+#[derive(Clone, Copy, Debug)]
+pub struct Direction {
+    shift: u32,
+    threshold: i64,
+    forward: bool,
+    previous: Option<Angle>,
+    /// Mean angle step per sample, in angle LSB · 2^FRAC.
+    mean_step: i64,
+}
+
+impl Direction {
+    /// Tracker for sample period `sample_s` and base electrical speed `omega_b_rad_s`.
+    pub fn new(sample_s: f64, omega_b_rad_s: f64) -> Self {
+        let samples = TIME_CONSTANT_S / sample_s;
+        let shift = libm::round(libm::log2(samples)).clamp(1.0, 16.0) as u32;
+        let step = THRESHOLD_PU * omega_b_rad_s * sample_s / Angle::RAD_PER_LSB;
+        Self {
+            shift,
+            threshold: (step * (1u64 << FRAC) as f64) as i64,
+            forward: true,
+            previous: None,
+            mean_step: 0,
+        }
+    }
+
+    /// Feeds the angle of the EMF vector at this sample; returns `true` when turning forwards.
+    pub fn update(&mut self, phi: Angle) -> bool {
+        if let Some(prev) = self.previous.replace(phi) {
+            let step = (phi - prev).0;
+            if step.unsigned_abs() < 1 << 30 {
+                let target = (step as i64) << FRAC;
+                self.mean_step += (target - self.mean_step) >> self.shift;
+            }
+        }
+        if self.forward && self.mean_step < -self.threshold {
+            self.forward = false;
+        } else if !self.forward && self.mean_step > self.threshold {
+            self.forward = true;
+        }
+        self.forward
+    }
+
+    /// True when turning forwards (θ increasing).
+    pub fn forward(&self) -> bool {
+        self.forward
+    }
+
+    /// The mean angle step per sample, angle LSB (saturated).
+    pub fn mean_step(&self) -> i32 {
+        sat_i32(self.mean_step >> FRAC)
+    }
+
+    /// Restarts with a known direction.
+    pub fn reset(&mut self, forward: bool) {
+        self.forward = forward;
+        self.previous = None;
+        self.mean_step = 0;
+    }
+}

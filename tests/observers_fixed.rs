@@ -1,0 +1,187 @@
+//! The fixed-point estimators against their float64 references (`pmsm_tests::observers`,
+//! the same discrete algorithms in SI units), over the speed range down to 1 % of rated speed,
+//! on motor A and on a small servo motor; and the checks of their configurations.
+
+use pmsm_core::observer::{Ao, AoConfig, MrasEmf, MrasEmfConfig, Nlo, NloConfig};
+use pmsm_core::{ConfigError, MotorParams};
+use pmsm_tests::observers::*;
+use pmsm_tests::trajectory::{Profile, Trajectory, motor_a};
+
+/// A small servo motor: 48 V, 4 pole pairs, 1.2 mH, 3000 r/min.
+fn servo() -> MotorParams {
+    let mut m = MotorParams::new(4, 0.5, 1.2e-3, 1.2e-3, 0.012, 2e-5, 1e-5);
+    m.rated_current_a = Some(4.0);
+    m.rated_speed_rpm = Some(3000.0);
+    m
+}
+
+/// Max angle (°) and speed (% of `scale`) difference between fixed point and f64 after the
+/// first 50 ms, where the speed exceeds 0.5 % of `scale`. Through a reversal the direction of
+/// rotation (and with it the angle, by half a turn) flips at a moment that one LSB can shift
+/// by a sample: samples where the two disagree on the direction are counted, not compared,
+/// and there may be at most 5 of them.
+fn compare(
+    m: &MotorParams,
+    vdc: f64,
+    fs: f64,
+    g: f64,
+    profile: Profile,
+    seconds: f64,
+    scale: f64,
+) -> [(f64, f64); 3] {
+    let b = base(m, vdc, fs);
+    let ts = 1.0 / fs;
+    let tr = Trajectory::new(*m, profile);
+    let s = tr.samples(ts, (seconds * fs) as usize);
+    let skip = (0.05 * fs) as usize;
+    let diff = |a: &[Est], r: &[Est]| {
+        let mut worst = (0.0f64, 0.0f64);
+        let moving = |k: &usize| s[*k].omega_e_rad_s.abs() > 0.005 * scale;
+        let mut flips = 0;
+        for (x, y) in (skip..s.len()).filter(moving).map(|k| (&a[k], &r[k])) {
+            if x.omega_rad_s.signum() != y.omega_rad_s.signum() {
+                flips += 1;
+                continue;
+            }
+            worst.0 = worst
+                .0
+                .max(deg(pmsm_tests::trajectory::wrap(x.theta_rad - y.theta_rad)).abs());
+            worst.1 = worst
+                .1
+                .max(100.0 * (x.omega_rad_s - y.omega_rad_s).abs() / scale);
+        }
+        assert!(flips <= 5, "{flips} samples disagree on the direction");
+        worst
+    };
+    let nlo = run_fixed(&mut Nlo::new(NloConfig::new(m, &b, g).unwrap()), &b, &s);
+    let mut rn = RefNlo::new(m, ts, g, b.omega_e_rad_s);
+    let ao = run_fixed(&mut Ao::new(AoConfig::new(m, &b, g).unwrap()), &b, &s);
+    let mut ra = RefAo::new(m, ts, g, b.omega_e_rad_s);
+    let mras = run_fixed(
+        &mut MrasEmf::new(MrasEmfConfig::paper(m, &b, g).unwrap()),
+        &b,
+        &s,
+    );
+    let mut rm = RefMras::new(
+        m,
+        ts,
+        g,
+        b.omega_e_rad_s,
+        pmsm_core::observer::mras_emf::PAPER_CONSTANTS,
+    );
+    [
+        diff(&nlo, &run_ref(|i, v| rn.update(i, v), &s)),
+        diff(&ao, &run_ref(|i, v| ra.update(i, v), &s)),
+        diff(&mras, &run_ref(|i, v| rm.update(i, v), &s)),
+    ]
+}
+
+#[test]
+fn motor_a_fixed_point_matches_f64_over_the_speed_range() {
+    let m = motor_a();
+    let rated_e = 3.0 * 120.0;
+    for w_m in [120.0, 60.0, 12.0, 1.2] {
+        let [nlo, ao, mras] = compare(
+            &m,
+            300.0,
+            20e3,
+            1000.0,
+            Profile::constant(w_m),
+            0.6,
+            rated_e,
+        );
+        println!(
+            "{w_m:>5} rad/s: NLO {:.4}° {:.4} %, AO {:.4}° {:.4} %, MRAS {:.4}° {:.4} %",
+            nlo.0, nlo.1, ao.0, ao.1, mras.0, mras.1
+        );
+        // Speeds in per cent of rated speed; the angle bound widens at 1 % of rated speed,
+        // where the EMF is 1 % of its rated value and its LSB weighs 100 times more.
+        let angle = if w_m < 2.0 { 0.1 } else { 0.01 };
+        assert!(nlo.0 < angle && ao.0 < angle, "{w_m}: {nlo:?} {ao:?}");
+        assert!(nlo.1 < 0.01 && ao.1 < 0.01, "{w_m}: {nlo:?} {ao:?}");
+        // The MRAS divides by ω̂_AO, which amplifies LSB differences near its floor.
+        assert!(mras.0 < 10.0 * angle && mras.1 < 0.5, "{w_m}: {mras:?}");
+    }
+    // A profile with accelerations through the whole range.
+    let p = Profile::new(&[(0.1, 1.2), (0.6, 120.0), (0.9, 60.0), (1.2, -30.0)]);
+    let [nlo, ao, _] = compare(&m, 300.0, 20e3, 1000.0, p, 1.4, rated_e);
+    println!(
+        "profile: NLO {:.4}° {:.4} %, AO {:.4}° {:.4} %",
+        nlo.0, nlo.1, ao.0, ao.1
+    );
+    assert!(nlo.0 < 0.1 && ao.0 < 0.1 && nlo.1 < 0.05 && ao.1 < 0.05);
+}
+
+#[test]
+fn servo_motor_fixed_point_matches_f64() {
+    let m = servo();
+    let rated_e = 4.0 * 3000.0 * std::f64::consts::TAU / 60.0;
+    for frac in [1.0, 0.5, 0.1, 0.01] {
+        let w_m = frac * rated_e / 4.0;
+        let [nlo, ao, _] = compare(&m, 48.0, 20e3, 5000.0, Profile::constant(w_m), 0.3, rated_e);
+        println!(
+            "servo at {:.0} %: NLO {:.4}° {:.4} %, AO {:.4}° {:.4} %",
+            100.0 * frac,
+            nlo.0,
+            nlo.1,
+            ao.0,
+            ao.1
+        );
+        let angle = if frac < 0.05 { 0.1 } else { 0.01 };
+        assert!(nlo.0 < angle && ao.0 < angle && nlo.1 < 0.01 && ao.1 < 0.01);
+    }
+}
+
+/// The AO reproduces seed 000 eq. 13–14 on the servo motor with g T_s = 0.25 (the issue's
+/// bounds: 3 % of the angle error, 8 % of the speed error).
+#[test]
+fn servo_ao_matches_eq_13_14_at_large_g_ts() {
+    let m = servo();
+    let b = base(&m, 48.0, 20e3);
+    for w_m in [300.0, 150.0, 60.0] {
+        let tr = Trajectory::new(m, Profile::constant(w_m));
+        let s = tr.samples(5e-5, 4000);
+        let est = run_fixed(&mut Ao::new(AoConfig::new(&m, &b, 5000.0).unwrap()), &b, &s);
+        let e = errors(&est, &s);
+        let (angle, speed) = (mean(&e, 3000, |x| x.0), mean(&e, 3000, |x| x.1));
+        let (ew, et) = ao_steady_errors(4.0 * w_m, 5000.0);
+        println!(
+            "servo {w_m} rad/s: angle {:.3}° (eq. 14 {:.3}°), speed {speed:.3} (eq. 13 {ew:.3}) rad/s",
+            deg(angle),
+            deg(et)
+        );
+        assert!((angle - et).abs() <= 0.03 * et.abs());
+        assert!((speed - ew).abs() <= 0.08 * ew.abs());
+    }
+}
+
+#[test]
+fn gains_that_break_the_discrete_observer_are_rejected() {
+    let m = motor_a();
+    let b = base(&m, 300.0, 20e3);
+    for g in [0.0, -5.0, f64::NAN, 40_001.0, 1e9] {
+        assert!(
+            matches!(
+                NloConfig::new(&m, &b, g),
+                Err(ConfigError::Gain { key: "gain", .. })
+            ),
+            "{g}"
+        );
+        assert!(
+            matches!(
+                AoConfig::new(&m, &b, g),
+                Err(ConfigError::Gain { key: "gain", .. })
+            ),
+            "{g}"
+        );
+    }
+    assert!(AoConfig::new(&m, &b, 40_000.0).is_ok());
+    // c3 so small that the MRAS pull exceeds 2 per sample at base speed.
+    let err = MrasEmfConfig::new(&m, &b, 1000.0, [0.0347, 5208.0, 1e-3]).unwrap_err();
+    assert!(matches!(err, ConfigError::Gain { key: "c3", .. }));
+    let mut bad = m;
+    bad.flux_wb = f64::NAN;
+    assert!(
+        matches!(NloConfig::new(&bad, &b, 1000.0), Err(ConfigError::Param(e)) if e.key == "flux_wb")
+    );
+}
