@@ -69,7 +69,11 @@ impl RefDirection {
         }
     }
 
-    fn update(&mut self, phi: f64) -> bool {
+    fn update(&mut self, phi: f64, valid: bool) -> bool {
+        if !valid {
+            self.prev = None;
+            return self.forward;
+        }
         if let Some(p) = self.prev.replace(phi) {
             let step = crate::trajectory::wrap(phi - p);
             if step.abs() < FRAC_PI_2 {
@@ -85,9 +89,9 @@ impl RefDirection {
     }
 }
 
-fn estimate_from_emf(emf: [f64; 2], psi: f64, dir: &mut RefDirection) -> Est {
+fn estimate_from_emf(emf: [f64; 2], psi: f64, min_emf: f64, dir: &mut RefDirection) -> Est {
     let phi = emf[1].atan2(emf[0]);
-    let forward = dir.update(phi);
+    let forward = dir.update(phi, emf[0].hypot(emf[1]) > min_emf);
     let speed = emf[0].hypot(emf[1]) / psi;
     Est {
         theta_rad: if forward {
@@ -107,6 +111,7 @@ pub struct RefAo {
     dir: RefDirection,
     kappa: f64,
     psi: f64,
+    min_emf: f64,
     emf: [f64; 2],
 }
 
@@ -118,6 +123,7 @@ impl RefAo {
             dir: RefDirection::new(ts, omega_b),
             kappa: 1.0 - (-g * ts).exp(),
             psi: m.flux_wb,
+            min_emf: pmsm_core::observer::nlo::MIN_EMF_PU * m.flux_wb * omega_b,
             emf: [0.0; 2],
         }
     }
@@ -129,7 +135,7 @@ impl RefAo {
                 *x += self.kappa * (m - *x);
             }
         }
-        estimate_from_emf(self.emf, self.psi, &mut self.dir)
+        estimate_from_emf(self.emf, self.psi, self.min_emf, &mut self.dir)
     }
 }
 
@@ -194,7 +200,7 @@ impl RefNlo {
         if mag > self.min_emf {
             self.u = [e[0] / mag, e[1] / mag];
         }
-        let est = estimate_from_emf(e, self.psi, &mut self.dir);
+        let est = estimate_from_emf(e, self.psi, self.min_emf, &mut self.dir);
         self.last_omega = est.omega_rad_s;
         est
     }

@@ -2,11 +2,13 @@
 //!
 //! - `cargo xtask perf`: measures and rewrites `docs/PERFORMANCE.md` (accuracy of the
 //!   fixed-point numerics against f64, speed of the plant model).
+//! - `cargo xtask figures`: regenerates the paper figures under `docs/figures/`.
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 
 mod accuracy;
 mod examples;
 mod plant_speed;
+mod seed000;
 
 use anyhow::{Result, bail};
 use std::path::PathBuf;
@@ -20,7 +22,13 @@ fn main() -> Result<()> {
     match task.as_str() {
         "perf" => perf(),
         "examples" => examples::write_all(&root().join("examples")),
-        _ => bail!("usage: cargo xtask perf | examples"),
+        "figures" => {
+            let dir = root().join("docs/figures");
+            seed000::figures(&dir)?;
+            eprintln!("wrote the figures of seed 000 to {}", dir.display());
+            Ok(())
+        }
+        _ => bail!("usage: cargo xtask perf | figures | examples"),
     }
 }
 
@@ -33,6 +41,8 @@ fn perf() -> Result<()> {
     );
     eprintln!("measuring the accuracy of the fixed-point numerics ...");
     doc.push_str(&accuracy::section());
+    eprintln!("running the seed-000 estimators ...");
+    doc.push_str(&seed000::section());
     eprintln!("measuring the speed of the plant model ...");
     doc.push_str(&plant_speed::section()?);
     let path = root().join("docs/PERFORMANCE.md");

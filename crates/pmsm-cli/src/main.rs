@@ -19,12 +19,15 @@ struct Cli {
 enum Command {
     /// Integrate the motor model under a voltage sequence (CSV in, state CSV out).
     Plant(commands::plant::Args),
+    /// Run a fixed-point estimator (NLO, AO, MRAS) on sampled voltages and currents.
+    Observe(commands::observe::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Plant(args) => commands::plant::run(&args),
+        Command::Observe(args) => commands::observe::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

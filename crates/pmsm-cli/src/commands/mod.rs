@@ -1,3 +1,4 @@
 //! One module per subcommand of `pmsm`.
 
+pub mod observe;
 pub mod plant;

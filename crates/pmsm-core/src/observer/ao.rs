@@ -36,6 +36,7 @@ pub struct AoConfig {
     kappa: Gain,
     inv_psi: Gain,
     psi_pu: Pu,
+    min_emf: Pu,
     /// Observer gain `g`, rad/s.
     pub gain_rad_s: f64,
 }
@@ -59,6 +60,7 @@ impl AoConfig {
             kappa: gain("gain", 1.0 - libm::exp(-gain_rad_s * base.sample_s))?,
             inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
             psi_pu: crate::num::pu_from_f64(motor.flux_wb / base.flux_wb),
+            min_emf: crate::num::pu_from_f64(super::nlo::MIN_EMF_PU),
             direction: Direction::new(base.sample_s, base.omega_e_rad_s),
             gain_rad_s,
         })
@@ -132,7 +134,9 @@ impl Estimator for Ao {
             self.emf = approach(self.emf, measured, self.config.kappa);
         }
         let p = polar(self.emf.alpha, self.emf.beta);
-        let forward = self.direction.update(p.angle);
+        let forward = self
+            .direction
+            .update(p.angle, p.magnitude > self.config.min_emf);
         let speed = self.config.inv_psi.apply(p.magnitude);
         self.last = Estimate {
             theta: rotor_angle_from_emf(p.angle, forward),

@@ -5,7 +5,8 @@
 //! by a first-order filter of time constant [`TIME_CONSTANT_S`]; the direction flips when the
 //! mean step exceeds a threshold of the other sign (hysteresis), so noise at standstill does
 //! not toggle it. Through a reversal the EMF shrinks to zero and reappears turned by half a
-//! turn: a step larger than a quarter turn is that flip, not a rotation, and is ignored.
+//! turn: a step larger than a quarter turn is that flip, not a rotation, and is ignored. The
+//! angle of a vector too small to have one (at start-up, at standstill) is not used at all.
 
 use crate::angle::Angle;
 use crate::num::sat_i32;
@@ -44,8 +45,13 @@ impl Direction {
         }
     }
 
-    /// Feeds the angle of the EMF vector at this sample; returns `true` when turning forwards.
-    pub fn update(&mut self, phi: Angle) -> bool {
+    /// Feeds the angle of the EMF vector at this sample, and whether the vector is large enough
+    /// for its angle to mean anything; returns `true` when turning forwards.
+    pub fn update(&mut self, phi: Angle, valid: bool) -> bool {
+        if !valid {
+            self.previous = None;
+            return self.forward;
+        }
         if let Some(prev) = self.previous.replace(phi) {
             let step = (phi - prev).0;
             if step.unsigned_abs() < 1 << 30 {

@@ -38,7 +38,8 @@ use crate::num::{Gain, Pu, Unit, dot_unit, mul_unit, pu_from_f64, round_shift_sa
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
-/// Below this EMF magnitude (per unit) the direction `û` of the last estimate is used.
+/// Below this EMF magnitude (per unit) the direction `û` of the last estimate is used, and the
+/// angle of the estimate does not count as evidence of the direction of rotation.
 pub const MIN_EMF_PU: f64 = 1e-4;
 
 /// Configuration of the [`Nlo`].
@@ -176,7 +177,9 @@ impl Estimator for Nlo {
         if p.magnitude > c.min_emf {
             self.emf_dir = p.angle.sin_cos();
         }
-        let forward = self.direction.update(p.angle);
+        let forward = self
+            .direction
+            .update(p.angle, p.magnitude > self.config.min_emf);
         let speed = c.inv_psi.apply(p.magnitude);
         self.last = Estimate {
             theta: rotor_angle_from_emf(p.angle, forward),
