@@ -361,9 +361,20 @@ pub fn section() -> String {
     high_l.lq_h *= 1.3;
     let b_l = base(&high_l, VDC, FS);
     let shifted = |e: &[Est]| tail(&s, e).0;
-    let nlo_l = run_fixed(&mut Nlo::new(NloConfig::new(&high_l, &b_l, 1000.0).expect("valid")), &b_l, &s);
-    let ao_l = run_fixed(&mut Ao::new(AoConfig::new(&high_l, &b_l, 1000.0).expect("valid")), &b_l, &s);
-    let (dn, da) = (shifted(&nlo_l) - shifted(&nlo), shifted(&ao_l) - shifted(&ao));
+    let nlo_l = run_fixed(
+        &mut Nlo::new(NloConfig::new(&high_l, &b_l, 1000.0).expect("valid")),
+        &b_l,
+        &s,
+    );
+    let ao_l = run_fixed(
+        &mut Ao::new(AoConfig::new(&high_l, &b_l, 1000.0).expect("valid")),
+        &b_l,
+        &s,
+    );
+    let (dn, da) = (
+        shifted(&nlo_l) - shifted(&nlo),
+        shifted(&ao_l) - shifted(&ao),
+    );
     md.push_str(&format!(
         "\nMid-ramp (1.3 s, 92 rad/s²) speed error: MRAS {:.1} % (equations.md: about −13 % \
          in its ramp), NLO {:.4} %, AO {:.2} %.\n\n\

@@ -2,36 +2,12 @@
 //! trajectories of motor A (point samples, `--voltage sampled`) and a `pmsm plant` run whose
 //! input voltages are held over each interval (`--voltage held`).
 
+mod common;
+
+use common::{one_line_error, pmsm, read_columns, s as p, scratch};
 use pmsm_tests::trajectory::{Profile, Trajectory, motor_a, wrap};
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pmsm-observe-test-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn pmsm(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_pmsm"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn read_columns(path: &Path) -> Vec<Vec<f64>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let width = lines.next().unwrap().split(',').count();
-    let mut cols = vec![Vec::new(); width];
-    for l in lines {
-        for (c, x) in cols.iter_mut().zip(l.split(',')) {
-            c.push(x.parse::<f64>().unwrap());
-        }
-    }
-    cols
-}
+use std::path::Path;
 
 const MOTOR_A: &str = "name = \"A\"\npole_pairs = 3\nrs_ohm = 1.6\nld_h = 0.0134\nlq_h = 0.0134\n\
                        flux_wb = 0.288\nkt_nm_per_a = 1.108\nj_kg_m2 = 0.04256\nb_nm_s = 0.004256\n\
@@ -211,23 +187,23 @@ fn bad_input_is_one_line() {
             "exceed the fixed-point range",
         ),
     ];
+    let observe = |input: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "observe",
+            "--motor",
+            p(&motor),
+            "--input",
+            p(input),
+            "--output",
+            p(&out),
+        ];
+        args.extend_from_slice(extra);
+        one_line_error(&args)
+    };
     for (name, text, expect) in cases {
         let input = dir.join(name);
         std::fs::write(&input, text).unwrap();
-        let r = pmsm(&[
-            "observe",
-            "--motor",
-            motor.to_str().unwrap(),
-            "--observer",
-            "ao",
-            "--input",
-            input.to_str().unwrap(),
-            "--output",
-            out.to_str().unwrap(),
-        ]);
-        let err = String::from_utf8_lossy(&r.stderr);
-        assert!(!r.status.success());
-        assert_eq!(err.lines().count(), 1, "{err}");
+        let err = observe(&input, &["--observer", "ao"]);
         assert!(err.contains(name) && err.contains(expect), "{err}");
     }
     // A gain the discrete observer cannot take at this rate.
@@ -237,20 +213,7 @@ fn bad_input_is_one_line() {
         "t_s,v_alpha_v,v_beta_v,i_alpha_a,i_beta_a\n0,1,2,3,4\n0.0001,1,2,3,4\n",
     )
     .unwrap();
-    let r = pmsm(&[
-        "observe",
-        "--motor",
-        motor.to_str().unwrap(),
-        "--observer",
-        "nlo",
-        "--gain",
-        "1e6",
-        "--input",
-        input.to_str().unwrap(),
-        "--output",
-        out.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert!(!r.status.success() && err.contains("`gain`"), "{err}");
+    let err = observe(&input, &["--observer", "nlo", "--gain", "1e6"]);
+    assert!(err.contains("`gain`"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }

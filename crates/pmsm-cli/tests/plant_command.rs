@@ -2,18 +2,14 @@
 //! integration (another formulation, another integrator: `pmsm_tests::reference`), on motors
 //! and voltage sequences generated here, and the one-line errors for bad input.
 
+mod common;
+
+use common::{one_line_error, pmsm as run_pmsm, s as p, scratch};
 use pmsm_core::params::MotorParams;
 use pmsm_tests::reference::{RefMotor, RefState};
 use pmsm_tests::signals::{VoltageRow, random_steps, vf_ramp_with_steps};
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pmsm-plant-test-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use std::path::Path;
 
 fn motor_toml(name: &str, p: &MotorParams) -> String {
     let mut s = format!(
@@ -31,13 +27,6 @@ fn write_input(path: &Path, rows: &[VoltageRow]) {
         writeln!(s, "{},{},{},{}", r.v_beta_v, r.t_s, r.load_nm, r.v_alpha_v).unwrap();
     }
     std::fs::write(path, s).unwrap();
-}
-
-fn run_pmsm(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_pmsm"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 /// Output rows: t_s, i_alpha_a, i_beta_a, theta_e_rad, omega_m_rad_s.
@@ -229,25 +218,27 @@ fn bad_input_gets_one_line_naming_file_and_place() {
             "row 2, column `t_s`: time must increase",
         ),
     ];
+    let plant = |motor: &Path, input: &Path| {
+        one_line_error(&[
+            "plant",
+            "--motor",
+            p(motor),
+            "--input",
+            p(input),
+            "--output",
+            p(&out),
+        ])
+    };
     for (file, text, expect) in cases {
         let input = dir.join(file);
         std::fs::write(&input, text).unwrap();
-        let r = run_pmsm(&[
-            "plant",
-            "--motor",
-            motor.to_str().unwrap(),
-            "--input",
-            input.to_str().unwrap(),
-            "--output",
-            out.to_str().unwrap(),
-        ]);
-        let err = String::from_utf8_lossy(&r.stderr);
-        assert!(!r.status.success());
-        assert_eq!(err.lines().count(), 1, "{err}");
+        let err = plant(&motor, &input);
         assert!(err.contains(file) && err.contains(expect), "{err}");
     }
     // Motor file errors name the file and the key.
     let bad_motor = dir.join("bad.toml");
+    let input = dir.join("ok.csv");
+    std::fs::write(&input, "t_s,v_alpha_v,v_beta_v\n0,1,2\n").unwrap();
     for (text, key) in [
         (
             motor_toml("m", &motor_a()).replace("rs_ohm = 1.6", "rs_ohm = 0"),
@@ -266,34 +257,12 @@ fn bad_input_gets_one_line_naming_file_and_place() {
         ),
     ] {
         std::fs::write(&bad_motor, text).unwrap();
-        let input = dir.join("ok.csv");
-        std::fs::write(&input, "t_s,v_alpha_v,v_beta_v\n0,1,2\n").unwrap();
-        let r = run_pmsm(&[
-            "plant",
-            "--motor",
-            bad_motor.to_str().unwrap(),
-            "--input",
-            input.to_str().unwrap(),
-            "--output",
-            out.to_str().unwrap(),
-        ]);
-        let err = String::from_utf8_lossy(&r.stderr);
-        assert!(!r.status.success());
-        assert_eq!(err.lines().count(), 1, "{err}");
+        let err = plant(&bad_motor, &input);
         assert!(err.contains("bad.toml") && err.contains(key), "{err}");
     }
     // A missing file.
-    let r = run_pmsm(&[
-        "plant",
-        "--motor",
-        "nope.toml",
-        "--input",
-        "x.csv",
-        "--output",
-        out.to_str().unwrap(),
-    ]);
-    assert!(!r.status.success());
-    assert!(String::from_utf8_lossy(&r.stderr).contains("nope.toml: cannot read"));
+    let err = plant(Path::new("nope.toml"), Path::new("x.csv"));
+    assert!(err.contains("nope.toml: cannot read"), "{err}");
     // Absurd but well-formed data: megavolts. Either a clean error or finite output, no panic.
     let input = dir.join("huge.csv");
     std::fs::write(

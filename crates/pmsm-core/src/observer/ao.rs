@@ -15,7 +15,10 @@
 //!
 //! Signals: `ê` Q8.24 per unit of `V_b`; `κ` a [`Gain`].
 
-use super::{Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, rotor_angle_from_emf};
+use super::{
+    Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, observer_pole,
+    rotor_angle_from_emf,
+};
 use crate::angle::Angle;
 use crate::cordic::polar;
 use crate::error::ConfigError;
@@ -23,10 +26,6 @@ use crate::frames::AlphaBeta;
 use crate::num::{Gain, Pu, mul_unit};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
-
-/// Largest accepted `g T_s`: beyond it the observer keeps less than half a sample of memory
-/// and passes the measurement noise of [`EmfMeter`] almost unfiltered.
-pub const MAX_GAIN_TS: f64 = 2.0;
 
 /// Configuration of the [`Ao`].
 #[derive(Clone, Copy, Debug)]
@@ -46,18 +45,10 @@ impl AoConfig {
     /// interior one `L_q` (its "EMF" is then the extended EMF).
     pub fn new(motor: &MotorParams, base: &PerUnit, gain_rad_s: f64) -> Result<Self, ConfigError> {
         motor.validate()?;
-        let max = MAX_GAIN_TS / base.sample_s;
-        if !(gain_rad_s > 0.0 && gain_rad_s <= max) {
-            return Err(ConfigError::Gain {
-                key: "gain",
-                value: gain_rad_s,
-                min: 0.0,
-                max,
-            });
-        }
+        let kappa = observer_pole(base, gain_rad_s)?;
         Ok(Self {
             meter: EmfMeter::new(motor, base, motor.lq_h)?,
-            kappa: gain("gain", 1.0 - libm::exp(-gain_rad_s * base.sample_s))?,
+            kappa,
             inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
             psi_pu: crate::num::pu_from_f64(motor.flux_wb / base.flux_wb),
             min_emf: crate::num::pu_from_f64(super::nlo::MIN_EMF_PU),

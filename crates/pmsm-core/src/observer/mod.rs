@@ -68,6 +68,28 @@ pub use nlo::{Nlo, NloConfig};
 use crate::error::ConfigError;
 use crate::num::Gain;
 
+/// Largest accepted `g T_s` of an observer gain: beyond it the observer keeps less than half a
+/// sample of memory and passes the measurement noise of [`EmfMeter`] almost unfiltered.
+pub const MAX_GAIN_TS: f64 = 2.0;
+
+/// The matched pole `κ = 1 − exp(−g T_s)` of the observer gain `g` (key `gain`), which must lie
+/// in `(0, MAX_GAIN_TS / T_s]`.
+pub(crate) fn observer_pole(
+    base: &crate::units::PerUnit,
+    gain_rad_s: f64,
+) -> Result<Gain, ConfigError> {
+    let max = MAX_GAIN_TS / base.sample_s;
+    if !(gain_rad_s > 0.0 && gain_rad_s <= max) {
+        return Err(ConfigError::Gain {
+            key: "gain",
+            value: gain_rad_s,
+            min: 0.0,
+            max,
+        });
+    }
+    gain("gain", 1.0 - libm::exp(-gain_rad_s * base.sample_s))
+}
+
 /// A configuration gain as a [`Gain`], or a typed error naming it.
 pub(crate) fn gain(key: &'static str, value: f64) -> Result<Gain, ConfigError> {
     Gain::new(value).ok_or(ConfigError::Gain {

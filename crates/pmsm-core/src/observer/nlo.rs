@@ -29,7 +29,10 @@
 //! Signals: `ê` Q8.24 per unit of `V_b`; `Δ` an [`Angle`]; `sinc` Q2.30; gains [`Gain`].
 
 use super::ao::{approach_delta, emf_of};
-use super::{Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, rotor_angle_from_emf};
+use super::{
+    Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, observer_pole,
+    rotor_angle_from_emf,
+};
 use crate::angle::{Angle, SinCos};
 use crate::cordic::polar;
 use crate::error::ConfigError;
@@ -66,15 +69,7 @@ impl NloConfig {
     /// motor (extended EMF; the paper's model is the surface motor).
     pub fn new(motor: &MotorParams, base: &PerUnit, gain_rad_s: f64) -> Result<Self, ConfigError> {
         motor.validate()?;
-        let max = super::ao::MAX_GAIN_TS / base.sample_s;
-        if !(gain_rad_s > 0.0 && gain_rad_s <= max) {
-            return Err(ConfigError::Gain {
-                key: "gain",
-                value: gain_rad_s,
-                min: 0.0,
-                max,
-            });
-        }
+        let kappa = observer_pole(base, gain_rad_s)?;
         let ts = base.sample_s;
         let half_step = 0.5 * base.omega_e_rad_s * ts / (Angle::RAD_PER_LSB * (1u64 << 24) as f64);
         let accel = ts * motor.p() * motor.kt_nm_per_a * motor.flux_wb * base.current_a
@@ -82,7 +77,7 @@ impl NloConfig {
         Ok(Self {
             meter: EmfMeter::new(motor, base, motor.lq_h)?,
             direction: Direction::new(ts, base.omega_e_rad_s),
-            kappa: gain("gain", 1.0 - libm::exp(-gain_rad_s * ts))?,
+            kappa,
             inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
             psi_pu: pu_from_f64(motor.flux_wb / base.flux_wb),
             half_step: gain("sample_hz", half_step)?,
