@@ -5,3 +5,4 @@ pub mod commands;
 pub mod csv_io;
 pub mod motor_file;
 pub mod plot;
+pub mod scenario_file;
