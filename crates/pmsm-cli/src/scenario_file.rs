@@ -375,10 +375,9 @@ mod tests {
             t_s: vec![1.0, 2.0, 4.0],
             values: vec![0.0, 10.0, -10.0],
         };
-        assert_eq!(b.at(0.0), 0.0);
-        assert_eq!(b.at(1.5), 5.0);
-        assert_eq!(b.at(3.0), 0.0);
-        assert_eq!(b.at(9.0), -10.0);
+        for (t, v) in [(0.0, 0.0), (1.5, 5.0), (3.0, 0.0), (9.0, -10.0)] {
+            assert!((b.at(t) - v).abs() < 1e-12, "{t}");
+        }
     }
 
     fn err(text: &str) -> String {
