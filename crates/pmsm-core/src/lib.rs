@@ -13,7 +13,11 @@
 //! | [`frames`] | `Abc`, `AlphaBeta`, `Dq`; Clarke, Park and their inverses |
 //! | [`units`] | per-unit bases from motor and inverter, the supported envelope |
 //! | [`params`] | motor and inverter parameters (SI) and their validation |
-//! | [`observer`] | the `Estimator` interface and the estimators (NLO, AO, MRAS) |
+//! | [`observer`] | the `Estimator` interface and the estimators (NLO, AO, MRAS on the EMF, MRAS on the current model) |
+//! | [`svpwm`] | space-vector modulation with the circle limit |
+//! | [`deadtime`] | dead-time compensation (seed 001 eq. 6–9) |
+//! | [`control`] | PI current loops and the IP speed loop, with anti-windup |
+//! | [`ipd`] | initial rotor position from voltage pulses, with N/S polarity |
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -28,12 +32,16 @@
 )]
 
 pub mod angle;
+pub mod control;
 pub mod cordic;
+pub mod deadtime;
 pub mod error;
 pub mod frames;
+pub mod ipd;
 pub mod num;
 pub mod observer;
 pub mod params;
+pub mod svpwm;
 pub mod units;
 
 pub use angle::{Angle, SinCos};

@@ -56,6 +56,7 @@ pub trait Estimator {
 pub mod ao;
 pub mod direction;
 pub mod emf;
+pub mod mras_current;
 pub mod mras_emf;
 pub mod nlo;
 

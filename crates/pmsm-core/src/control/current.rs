@@ -1,0 +1,248 @@
+//! dq current controllers of seed 001 (§1, Fig. 5; equations.md §4.4).
+//!
+//! Two [`Pi`] controllers in the rotor frame, `i_d* = 0` by default (seed 001 §1), with the
+//! optional decoupling feed-forward of the dq model (seed 001 eq. 3–4, equations.md §2.2):
+//!
+//! ```text
+//! v_d = PI_d(i_d* − i_d) − ω L_q i_q
+//! v_q = PI_q(i_q* − i_q) + ω (L_d i_d + ψ)
+//! ```
+//!
+//! # Gains (pole–zero cancellation)
+//!
+//! `K_p = ω_c L`, `K_i = ω_c R` per axis (`L_d` on d, `L_q` on q): the PI zero
+//! `K_i/K_p = R/L` cancels the winding's pole, and the loop `(K_p s + K_i)/s · 1/(L s + R)`
+//! becomes `ω_c/s`, a first-order closed loop of bandwidth `ω_c` (10–90 % rise time
+//! `ln 9/ω_c`). With the current sampled at `t_k` and the voltage applied over `[t_k, t_{k+1})`
+//! the discrete pole is at `1 − ω_c T_s` (to first order in `R T_s/L`), so `ω_c T_s` must stay
+//! well below 1: the default is `ω_c = 0.05/T_s` (700 rad/s at 14 kHz), and `K_p` is accepted
+//! up to `L/T_s` (`ω_c T_s = 1`, a deadbeat loop).
+//!
+//! # Voltage limit: circle, d axis first
+//!
+//! The available voltage is the linear range of SVPWM, `V_max = m · V_DC/√3` with the
+//! measured bus and a margin `m ≤ 1` ([`CurrentDesign::modulation`]). d is limited to
+//! `±V_max`, then q to `±√(V_max² − v_d²)`: the d axis, which sets the flux and (at
+//! `i_d* = 0`) needs little voltage, keeps its authority, and the q axis gets what is left.
+//! Each PI sees its own axis limit, so its anti-windup (conditional integration and integrator
+//! clamping, [`super::pi`]) acts exactly when the vector reaches the circle; SVPWM then never
+//! has to shorten the vector itself. If it does (dead-time compensation added after this
+//! stage, or a bus drop between the two), its `saturated` flag is fed back as
+//! [`CurrentInput::hold`] and stops both integrators from winding outward.
+//!
+//! # Formats
+//!
+//! Currents, voltages, speed: [`Pu`] (Q8.24). `L_d`, `L_q` (per unit, `= X/Z_b` at base
+//! speed), `m/√3`: [`WideGain`]. `V_max`: [`Pu`], ≤ 1.16 · `m` at nominal bus.
+
+use super::pi::{Limits, Pi, PiConfig};
+use super::{WideGain, circle_room, gain_in, wide_gain};
+use crate::error::ConfigError;
+use crate::frames::Dq;
+use crate::num::{Pu, mul, pu_from_f64};
+use crate::params::{MotorParams, in_range};
+use crate::units::PerUnit;
+
+/// How the current controllers are designed; [`CurrentDesign::default_for`] gives the
+/// defaults.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurrentDesign {
+    /// Closed-loop bandwidth `ω_c`, rad/s (used when the gains are not given).
+    pub bandwidth_rad_s: f64,
+    /// d-axis gains `(K_p` in V/A, `K_i` in V/(A·s)`)`, overriding `ω_c L_d`, `ω_c R`.
+    pub gains_d: Option<(f64, f64)>,
+    /// q-axis gains `(K_p, K_i)`, overriding `ω_c L_q`, `ω_c R`.
+    pub gains_q: Option<(f64, f64)>,
+    /// Add the decoupling feed-forward `−ω L_q i_q` (d) and `ω (L_d i_d + ψ)` (q).
+    pub decoupling: bool,
+    /// Fraction `m` of the linear SVPWM range `V_DC/√3` the loops may use, in (0, 1].
+    pub modulation: f64,
+}
+
+impl CurrentDesign {
+    /// `ω_c = 0.05/T_s`, pole–zero-cancelling gains, decoupling on, `m = 1`.
+    pub fn default_for(base: &PerUnit) -> Self {
+        Self {
+            bandwidth_rad_s: DEFAULT_BANDWIDTH_TS / base.sample_s,
+            gains_d: None,
+            gains_q: None,
+            decoupling: true,
+            modulation: 1.0,
+        }
+    }
+}
+
+/// Default `ω_c T_s`: 700 rad/s at 14 kHz, a decade below the sampling limit.
+pub const DEFAULT_BANDWIDTH_TS: f64 = 0.05;
+
+/// Configuration of the [`CurrentController`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurrentConfig {
+    pi_d: PiConfig,
+    pi_q: PiConfig,
+    /// `L_d` per unit.
+    ld: WideGain,
+    /// `L_q` per unit.
+    lq: WideGain,
+    /// `ψ` per unit.
+    psi: Pu,
+    /// `m/√3`: `V_max = m/√3 · v_DC` (both per unit of `V_b`).
+    vmax_per_vdc: WideGain,
+    decoupling: bool,
+    /// The design it was built from (SI), for reports.
+    pub design: CurrentDesign,
+    /// Gains actually used, SI: `[K_p,d, K_i,d, K_p,q, K_i,q]` (V/A, V/(A·s)).
+    pub gains_si: [f64; 4],
+}
+
+impl CurrentConfig {
+    /// Designs the two current controllers for `motor` sampled as in `base`.
+    ///
+    /// Errors: a motor parameter ([`ConfigError::Param`]); `bandwidth_rad_s` outside
+    /// `(0, 1/T_s]`, a `K_p` outside `(0, L/T_s]` or `K_i` outside `[0, K_p/T_s]`
+    /// ([`ConfigError::Gain`] naming `current.bandwidth_rad_s`, `current.kp_d`, ...);
+    /// `modulation` outside `(0, 1]`.
+    pub fn new(
+        motor: &MotorParams,
+        base: &PerUnit,
+        design: CurrentDesign,
+    ) -> Result<Self, ConfigError> {
+        motor.validate()?;
+        let ts = base.sample_s;
+        let z_b = base.impedance_ohm;
+        let r = motor.rs_ohm;
+        let m = in_range("current.modulation", design.modulation, 1e-3, 1.0)?;
+        let (kp_d, ki_d, kp_q, ki_q) = {
+            let need_bw = design.gains_d.is_none() || design.gains_q.is_none();
+            let wc = if need_bw {
+                gain_in(
+                    "current.bandwidth_rad_s",
+                    design.bandwidth_rad_s,
+                    1e-9,
+                    1.0 / ts,
+                )?
+            } else {
+                design.bandwidth_rad_s
+            };
+            let (kp_d, ki_d) = design.gains_d.unwrap_or((wc * motor.ld_h, wc * r));
+            let (kp_q, ki_q) = design.gains_q.unwrap_or((wc * motor.lq_h, wc * r));
+            (kp_d, ki_d, kp_q, ki_q)
+        };
+        gain_in("current.kp_d", kp_d, 1e-12, motor.ld_h / ts)?;
+        gain_in("current.kp_q", kp_q, 1e-12, motor.lq_h / ts)?;
+        gain_in("current.ki_d", ki_d, 0.0, kp_d / ts)?;
+        gain_in("current.ki_q", ki_q, 0.0, kp_q / ts)?;
+        let pi_d = PiConfig::new(
+            kp_d / z_b,
+            ki_d * ts / z_b,
+            ["current.kp_d", "current.ki_d"],
+        )?;
+        let pi_q = PiConfig::new(
+            kp_q / z_b,
+            ki_q * ts / z_b,
+            ["current.kp_q", "current.ki_q"],
+        )?;
+        let l_b = base.inductance_h;
+        Ok(Self {
+            pi_d,
+            pi_q,
+            ld: wide_gain("ld_h", motor.ld_h / l_b, 1e6)?,
+            lq: wide_gain("lq_h", motor.lq_h / l_b, 1e6)?,
+            psi: pu_from_f64(motor.flux_wb / base.flux_wb),
+            vmax_per_vdc: wide_gain("current.modulation", m / libm::sqrt(3.0), 1.0)?,
+            decoupling: design.decoupling,
+            design,
+            gains_si: [kp_d, ki_d, kp_q, ki_q],
+        })
+    }
+}
+
+/// What the current controllers see at one sample, per unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CurrentInput {
+    /// Current reference (`i_d* = 0` for seed 001's drive).
+    pub i_ref: Dq,
+    /// Measured current in the (estimated) rotor frame.
+    pub i: Dq,
+    /// Electrical speed used by the decoupling, per unit of `ω_b`.
+    pub omega: Pu,
+    /// Measured bus voltage, per unit of `V_b` (√3 at the nominal bus).
+    pub vdc: Pu,
+    /// The modulator saturated at the previous sample: do not integrate outward.
+    pub hold: bool,
+}
+
+/// Output of the current controllers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CurrentOutput {
+    /// Voltage command in the rotor frame, per unit; `|v| ≤ V_max` (within 1 LSB).
+    pub v: Dq,
+    /// The available voltage `V_max = m v_DC/√3` at this sample.
+    pub v_max: Pu,
+    /// The d controller hit its limit.
+    pub saturated_d: bool,
+    /// The q controller hit its limit.
+    pub saturated_q: bool,
+}
+
+/// The dq current controllers: configuration and state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurrentController {
+    config: CurrentConfig,
+    pi_d: Pi,
+    pi_q: Pi,
+}
+
+impl CurrentController {
+    /// Controllers with zero integral state.
+    pub fn new(config: CurrentConfig) -> Self {
+        Self {
+            pi_d: Pi::new(config.pi_d),
+            pi_q: Pi::new(config.pi_q),
+            config,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &CurrentConfig {
+        &self.config
+    }
+
+    /// Clears the integrators (before the inverter is enabled).
+    pub fn reset(&mut self) {
+        self.pi_d.reset(Pu::ZERO);
+        self.pi_q.reset(Pu::ZERO);
+    }
+
+    /// One control sample. Integer only; never panics; a bus at or below zero gives a zero
+    /// voltage and both `saturated` flags.
+    pub fn step(&mut self, input: &CurrentInput) -> CurrentOutput {
+        let c = &self.config;
+        let vdc = input.vdc.max(Pu::ZERO);
+        let v_max = c.vmax_per_vdc.apply(vdc);
+        let (ff_d, ff_q) = if c.decoupling {
+            let w = input.omega;
+            // −ω L_q i_q and ω (L_d i_d + ψ): speed voltages of seed 001 eq. 3–4.
+            let ff_d = c.lq.apply(mul(w, input.i.q)).saturating_neg();
+            let flux_d = c.ld.apply(input.i.d).saturating_add(c.psi);
+            (ff_d, mul(w, flux_d))
+        } else {
+            (Pu::ZERO, Pu::ZERO)
+        };
+        let e_d = input.i_ref.d.saturating_sub(input.i.d);
+        let e_q = input.i_ref.q.saturating_sub(input.i.q);
+        let d = self
+            .pi_d
+            .step(e_d, ff_d, Limits::symmetric(v_max), input.hold);
+        let room = circle_room(v_max, d.u);
+        let q = self
+            .pi_q
+            .step(e_q, ff_q, Limits::symmetric(room), input.hold);
+        CurrentOutput {
+            v: Dq { d: d.u, q: q.u },
+            v_max,
+            saturated_d: d.saturated || v_max == Pu::ZERO,
+            saturated_q: q.saturated || v_max == Pu::ZERO,
+        }
+    }
+}

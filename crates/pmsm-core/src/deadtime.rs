@@ -1,0 +1,333 @@
+//! Dead-time compensation of seed 001 §3 (eq. 7–9; equations.md §2.3 and §4.5).
+//!
+//! During the dead time of each switching edge a leg's output follows its current, not its
+//! command; averaged over a period the leg loses `V_dead sgn(i_x)` (seed 001 eq. 8, the
+//! numbering of the seed's own text):
+//!
+//! ```text
+//! V_dead = (T_dead + T_on − T_off)/T_PWM · (V_DC − V_sat + V_f) + (V_sat + V_f)/2     (eq. 8)
+//! V_dt   = (2/3) V_dead [s_a + a s_b + a² s_c],  a = e^{j2π/3}                        (eq. 7)
+//! applied voltage = commanded voltage − V_dt                                        (eq. 9)
+//! ```
+//!
+//! `(2/3)[s_a + a s_b + a² s_c]` is the amplitude-invariant Clarke transform of
+//! `(s_a, s_b, s_c)`, so `V_dt = clarke(V_dead · s)`; with no current near zero it has length
+//! `(4/3) V_dead` and points at the sector of the current vector.
+//!
+//! # Near zero crossings
+//!
+//! `s_x = sat(i_x / i_band)` (linear within `±i_band`, ±1 outside) instead of `sgn i_x`: the
+//! leg error fades over the band where the PWM ripple makes the instantaneous current change
+//! sign, and a noisy measured current near zero does not toggle ±V_dead every sample. Default
+//! `i_band` is the ripple amplitude of a leg at half duty, `V_DC/(8 L_min f_PWM)` (0.19 A for
+//! motor B at 540 V, 14 kHz). The current used can be the measurement or the current
+//! reference (smooth, and known before the period it compensates): [`CurrentSource`] tells
+//! the drive which one to pass.
+//!
+//! # Where it applies ([`DeadTimeMode`])
+//!
+//! | mode | command sent to the PWM | voltage given to the estimator |
+//! |---|---|---|
+//! | `Off` | `v_ref` | the command |
+//! | `Command` | `v_ref + V_dt` | the command (the estimator is not told) |
+//! | `Estimator` | `v_ref` | the command `− V_dt` (seed 001 eq. 9) |
+//! | `Both` | `v_ref + V_dt` | the command `− V_dt` (= `v_ref` when nothing limits) |
+//!
+//! `V_dead` is scaled by the measured bus at run time (it is affine in `V_DC`).
+//!
+//! # Formats
+//!
+//! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM` and `1/i_band`:
+//! [`WideGain`]. `s_x`: [`Pu`] in [−1, 1]. `V_dt` within 2 LSB of the f64 formula.
+
+use crate::control::WideGain;
+use crate::error::ConfigError;
+use crate::frames::{Abc, AlphaBeta, clarke, inverse_clarke};
+use crate::num::{Pu, mul, pu_from_f64};
+use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative};
+use crate::units::PerUnit;
+
+/// Where the compensation is applied (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DeadTimeMode {
+    /// No compensation.
+    Off,
+    /// Added to the voltage command only.
+    Command,
+    /// Subtracted from the voltage the estimator uses only (seed 001 eq. 9).
+    Estimator,
+    /// Both.
+    #[default]
+    Both,
+}
+
+impl DeadTimeMode {
+    /// The command gets `+V_dt`.
+    pub fn compensates_command(self) -> bool {
+        matches!(self, Self::Command | Self::Both)
+    }
+
+    /// The estimator's voltage gets `−V_dt`.
+    pub fn corrects_estimator(self) -> bool {
+        matches!(self, Self::Estimator | Self::Both)
+    }
+}
+
+/// Which current the drive passes to [`DeadTimeConfig::error_vector`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CurrentSource {
+    /// The measured current.
+    Measured,
+    /// The current reference (rotated to αβ).
+    #[default]
+    Reference,
+}
+
+/// Switching-device parameters beyond [`InverterParams`] (SI; zero for ideal devices).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DeviceParams {
+    /// Switch turn-on delay `T_on`, s.
+    pub t_on_s: f64,
+    /// Switch turn-off delay `T_off`, s.
+    pub t_off_s: f64,
+    /// On-state drop of a switch `V_sat`, V.
+    pub v_sat_v: f64,
+    /// Forward drop of a diode `V_f`, V.
+    pub v_f_v: f64,
+}
+
+/// How the compensation is set up; [`DeadTimeDesign::default_for`] gives the defaults.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DeadTimeDesign {
+    /// Device delays and drops.
+    pub device: DeviceParams,
+    /// Half-width of the linear band of the current sign, A.
+    pub band_a: f64,
+    /// Where it applies.
+    pub mode: DeadTimeMode,
+    /// Which current to use.
+    pub source: CurrentSource,
+}
+
+impl DeadTimeDesign {
+    /// Ideal devices, band `V_DC/(8 L_min f_PWM)`, mode [`DeadTimeMode::Both`], current
+    /// reference.
+    pub fn default_for(motor: &MotorParams, inverter: &InverterParams) -> Self {
+        let l_min = motor.ld_h.min(motor.lq_h);
+        Self {
+            device: DeviceParams::default(),
+            band_a: inverter.vdc_v / (8.0 * l_min * inverter.pwm_hz),
+            mode: DeadTimeMode::Both,
+            source: CurrentSource::Reference,
+        }
+    }
+}
+
+/// Configuration of the compensation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DeadTimeConfig {
+    /// `T_eff f_PWM` (dimensionless): the part of `V_dead` proportional to the bus.
+    k_bus: WideGain,
+    /// `[(V_sat + V_f)/2 − T_eff f_PWM (V_sat − V_f)] / V_b`.
+    v_const: Pu,
+    /// `1/i_band`, per unit.
+    inv_band: WideGain,
+    /// The design (SI).
+    pub design: DeadTimeDesign,
+    /// `V_dead` at the nominal bus, V.
+    pub v_dead_nominal_v: f64,
+}
+
+impl DeadTimeConfig {
+    /// Compensation for `inverter` in the bases `base`.
+    ///
+    /// Errors ([`ConfigError::Param`]): `deadtime.t_on_s`, `deadtime.t_off_s`,
+    /// `deadtime.v_sat_v`, `deadtime.v_f_v` negative or not finite, drops above 50 V, an
+    /// effective dead time `T_dead + T_on − T_off` negative or above 10 % of the period, or
+    /// `deadtime.band_a` outside `(0, 10 I_b]` (at least 1e−6 I_b).
+    pub fn new(
+        inverter: &InverterParams,
+        base: &PerUnit,
+        design: DeadTimeDesign,
+    ) -> Result<Self, ConfigError> {
+        inverter.validate()?;
+        let d = design.device;
+        non_negative("deadtime.t_on_s", d.t_on_s)?;
+        non_negative("deadtime.t_off_s", d.t_off_s)?;
+        in_range("deadtime.v_sat_v", d.v_sat_v, 0.0, 50.0)?;
+        in_range("deadtime.v_f_v", d.v_f_v, 0.0, 50.0)?;
+        let k = (inverter.dead_time_s + d.t_on_s - d.t_off_s) * inverter.pwm_hz;
+        if !(0.0..0.1).contains(&k) {
+            return Err(ParamError {
+                key: "deadtime.t_off_s",
+                reason: ParamReason::Inconsistent(
+                    "dead_time_s + t_on_s (effective dead time outside [0, 10 %) of the period)",
+                ),
+            }
+            .into());
+        }
+        let band = in_range(
+            "deadtime.band_a",
+            design.band_a,
+            1e-6 * base.current_a,
+            10.0 * base.current_a,
+        )?;
+        let v_const = 0.5 * (d.v_sat_v + d.v_f_v) - k * (d.v_sat_v - d.v_f_v);
+        let gain = |key, v| {
+            WideGain::new(v).ok_or(ConfigError::Gain {
+                key,
+                value: v,
+                min: 0.0,
+                max: 1e6,
+            })
+        };
+        Ok(Self {
+            k_bus: gain("dead_time_s", k)?,
+            v_const: pu_from_f64(v_const / base.voltage_v),
+            inv_band: gain("deadtime.band_a", base.current_a / band)?,
+            design,
+            v_dead_nominal_v: k * inverter.vdc_v + v_const,
+        })
+    }
+
+    /// `V_dead` (eq. 8) for the measured bus `vdc`, per unit of `V_b`; zero for a bus at or
+    /// below zero.
+    pub fn v_dead(&self, vdc: Pu) -> Pu {
+        if vdc <= Pu::ZERO {
+            return Pu::ZERO;
+        }
+        self.k_bus.apply(vdc).saturating_add(self.v_const)
+    }
+
+    /// `sat(i/i_band)` in [−1, 1].
+    fn sign(&self, i: Pu) -> Pu {
+        self.inv_band
+            .apply(i)
+            .clamp(Pu::from_bits(-(1 << 24)), Pu::from_bits(1 << 24))
+    }
+
+    /// The dead-time error vector `V_dt` (eq. 7) for the current `i` (αβ, per unit: the
+    /// measurement or the reference, see [`CurrentSource`]) on the bus `vdc`.
+    pub fn error_vector(&self, i: AlphaBeta, vdc: Pu) -> AlphaBeta {
+        let v = self.v_dead(vdc);
+        let ph = inverse_clarke(i);
+        clarke(Abc {
+            a: mul(v, self.sign(ph.a)),
+            b: mul(v, self.sign(ph.b)),
+            c: mul(v, self.sign(ph.c)),
+        })
+    }
+
+    /// The command to send to the PWM for the reference `v_ref`: `v_ref + V_dt` when the mode
+    /// compensates the command, else `v_ref`.
+    pub fn command(&self, v_ref: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
+        if self.design.mode.compensates_command() {
+            add(v_ref, v_dt)
+        } else {
+            v_ref
+        }
+    }
+
+    /// The voltage the estimator should use, from the command `v_cmd` actually sent (after
+    /// the modulator's limit) over the period: `v_cmd − V_dt` when the mode corrects the
+    /// estimator (eq. 9), else `v_cmd`.
+    pub fn estimator_voltage(&self, v_cmd: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
+        if self.design.mode.corrects_estimator() {
+            AlphaBeta {
+                alpha: v_cmd.alpha.saturating_sub(v_dt.alpha),
+                beta: v_cmd.beta.saturating_sub(v_dt.beta),
+            }
+        } else {
+            v_cmd
+        }
+    }
+}
+
+fn add(a: AlphaBeta, b: AlphaBeta) -> AlphaBeta {
+    AlphaBeta {
+        alpha: a.alpha.saturating_add(b.alpha),
+        beta: a.beta.saturating_add(b.beta),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn setup(mode: DeadTimeMode) -> (DeadTimeConfig, PerUnit) {
+        let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
+        m.rated_current_a = Some(2.53);
+        let inv = InverterParams {
+            vdc_v: 540.0,
+            pwm_hz: 14e3,
+            dead_time_s: 2e-6,
+            current_full_scale_a: 10.0,
+        };
+        let base = PerUnit::new(&m, &inv, 14e3).unwrap();
+        let mut d = DeadTimeDesign::default_for(&m, &inv);
+        d.mode = mode;
+        (DeadTimeConfig::new(&inv, &base, d).unwrap(), base)
+    }
+
+    #[test]
+    fn seed_value_and_modes() {
+        let (c, base) = setup(DeadTimeMode::Both);
+        // 2 µs at 14 kHz on 540 V: 15.12 V (equations.md §2.3: "about 15 V").
+        assert!((c.v_dead_nominal_v - 15.12).abs() < 1e-9);
+        let vd = c.v_dead(base.voltage_pu(540.0));
+        assert!((base.voltage_v(vd) - 15.12).abs() < 1e-5);
+        assert_eq!(c.v_dead(Pu::ZERO), Pu::ZERO);
+        let v = AlphaBeta {
+            alpha: Pu::from_num(0.5),
+            beta: Pu::ZERO,
+        };
+        let dt = AlphaBeta {
+            alpha: Pu::from_num(0.03125),
+            beta: Pu::ZERO,
+        };
+        for (mode, cmd, est) in [
+            (DeadTimeMode::Off, 0.5, 0.5),
+            (DeadTimeMode::Command, 0.53125, 0.53125),
+            (DeadTimeMode::Estimator, 0.5, 0.46875),
+            (DeadTimeMode::Both, 0.53125, 0.5),
+        ] {
+            let (c, _) = setup(mode);
+            let command = c.command(v, dt);
+            assert_eq!(command.alpha, Pu::from_num(cmd), "{mode:?}");
+            assert_eq!(
+                c.estimator_voltage(command, dt).alpha,
+                Pu::from_num(est),
+                "{mode:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_device_parameters_are_named() {
+        let (c, base) = setup(DeadTimeMode::Both);
+        let inv = InverterParams {
+            vdc_v: 540.0,
+            pwm_hz: 14e3,
+            dead_time_s: 2e-6,
+            current_full_scale_a: 10.0,
+        };
+        let mut d = c.design;
+        d.device.t_off_s = 3e-6;
+        assert!(matches!(
+            DeadTimeConfig::new(&inv, &base, d),
+            Err(ConfigError::Param(ParamError {
+                key: "deadtime.t_off_s",
+                ..
+            }))
+        ));
+        let mut d = c.design;
+        d.band_a = 0.0;
+        assert!(matches!(
+            DeadTimeConfig::new(&inv, &base, d),
+            Err(ConfigError::Param(ParamError {
+                key: "deadtime.band_a",
+                ..
+            }))
+        ));
+    }
+}
