@@ -21,6 +21,8 @@ enum Command {
     Plant(commands::plant::Args),
     /// Run a fixed-point estimator (NLO, AO, MRAS) on sampled voltages and currents.
     Observe(commands::observe::Args),
+    /// Run the fixed-point sensorless drive against the plant on a scenario file.
+    Simulate(commands::simulate::Args),
 }
 
 fn main() -> ExitCode {
@@ -28,6 +30,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Plant(args) => commands::plant::run(&args),
         Command::Observe(args) => commands::observe::run(&args),
+        Command::Simulate(args) => commands::simulate::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -18,6 +18,7 @@
 //! | [`deadtime`] | dead-time compensation (seed 001 eq. 6–9) |
 //! | [`control`] | PI current loops and the IP speed loop, with anti-windup |
 //! | [`ipd`] | initial rotor position from voltage pulses, with N/S polarity |
+//! | [`drive`] | the drive: state machine and data flow of one control step |
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -35,6 +36,7 @@ pub mod angle;
 pub mod control;
 pub mod cordic;
 pub mod deadtime;
+pub mod drive;
 pub mod error;
 pub mod frames;
 pub mod ipd;

@@ -370,6 +370,40 @@ impl Inverter {
         Ok(())
     }
 
+    /// One PWM period with all six switches off (a fault, or the drive idle): each phase
+    /// current freewheels through a diode, to the upper rail when it flows into the leg
+    /// (`V_DC + V_f`) and to the lower one when it flows out (`−V_f`), so it decays against the
+    /// bus and stays at zero once there (unless the back-EMF exceeds the bus). The smooth sign
+    /// of the averaged model holds a phase at zero: a blocked diode pair.
+    pub fn step_off(
+        &mut self,
+        motor: &mut Motor,
+        vdc_v: f64,
+        load_nm: f64,
+    ) -> Result<(), PlantError> {
+        if !vdc_v.is_finite() {
+            return Err(PlantError::NonFinite("vdc_v"));
+        }
+        let m = self.model;
+        let period_s = m.period_s();
+        let leg = move |i: f64| {
+            let s = m.smooth_sign(i);
+            0.5 * (1.0 + s) * (-m.v_f_v) + 0.5 * (1.0 - s) * (vdc_v + m.v_f_v)
+        };
+        // The band acts like a resistance V_DC/(2 i_ε): limit the sub-step as for the
+        // averaged model, with the whole bus across it.
+        let h = m.averaged_substep_limit_s(vdc_v, motor.min_inductance_h());
+        motor.step_with_limit(period_s, load_nm, h, |i| {
+            clarke([leg(i[0]), leg(i[1]), leg(i[2])])
+        })?;
+        // Both switches of every leg have been off for longer than any dead time.
+        self.legs = [LegMemory {
+            high: false,
+            last_edge_s: -1.0,
+        }; 3];
+        Ok(())
+    }
+
     /// Integrates one period edge by edge: between consecutive edges every leg's conduction is
     /// fixed and the current sign is taken at the start of the interval.
     fn switching_period(

@@ -113,17 +113,30 @@ impl Plant {
         let mut motor = self.motor.clone();
         self.inverter
             .step_period(&mut motor, duties, self.vdc_v, load_nm)?;
+        Ok(self.finish_period(motor, clamped))
+    }
+
+    /// Integrates one PWM period with the inverter's outputs off (all switches open; see
+    /// [`Inverter::step_off`]), then samples the currents. On error the plant is unchanged.
+    pub fn step_off(&mut self, load_nm: f64) -> Result<Sample, PlantError> {
+        let mut motor = self.motor.clone();
+        self.inverter.step_off(&mut motor, self.vdc_v, load_nm)?;
+        Ok(self.finish_period(motor, false))
+    }
+
+    /// Accepts the motor advanced by one period and samples it.
+    fn finish_period(&mut self, motor: Motor, clamped: bool) -> Sample {
         self.motor = motor;
         self.periods += 1;
         let i_true = self.motor.i_abc();
         let (codes, i_meas) = self.sensor.measure(i_true);
-        Ok(Sample {
+        Sample {
             t_s: self.time_s(),
             i_abc_a_true: i_true,
             adc_codes: codes,
             i_abc_a_measured: i_meas,
             vdc_v: self.vdc_v,
             duties_clamped: clamped,
-        })
+        }
     }
 }

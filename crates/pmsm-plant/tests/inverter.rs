@@ -279,3 +279,47 @@ fn switching_period_average_equals_averaged_model_at_any_duty() {
     }
     eprintln!("switching period average vs averaged model: worst {worst:e} V");
 }
+
+/// With the outputs off, a current decays against the bus through the diodes and stays at
+/// zero; a motor turning below the bus voltage draws no current.
+#[test]
+fn outputs_off_let_the_current_decay_and_stay_at_zero() {
+    use pmsm_plant::{AdcParams, Mechanics, Motor, MotorModel, Plant};
+    let mut params = pmsm_core::MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
+    params.rated_current_a = Some(2.53);
+    let inv = pmsm_core::InverterParams {
+        vdc_v: 540.0,
+        pwm_hz: 14e3,
+        dead_time_s: 2e-6,
+        current_full_scale_a: 10.0,
+    };
+    let mut motor = Motor::new(MotorModel::new(params), 0.3, 50.0).unwrap();
+    motor.set_mechanics(Mechanics::ConstantSpeed(50.0)).unwrap();
+    let mut plant = Plant::new(
+        motor,
+        InverterModel::new(inv, InverterKind::Averaged),
+        AdcParams::from_inverter(&inv),
+    )
+    .unwrap();
+    // Drive a current of a few amperes first.
+    for _ in 0..100 {
+        plant.step_pwm([0.7, 0.3, 0.3], 0.0).unwrap();
+    }
+    let before = plant
+        .motor()
+        .i_abc()
+        .iter()
+        .fold(0.0f64, |a, x| a.max(x.abs()));
+    assert!(before > 2.0, "{before}");
+    // 2 ms off: L/R would take 3.5 ms to decay by e; against 540 V it takes well under 1 ms.
+    let mut after = 0.0f64;
+    for _ in 0..28 {
+        after = plant
+            .step_off(0.0)
+            .unwrap()
+            .i_abc_a_true
+            .iter()
+            .fold(0.0, |a, x| a.max(x.abs()));
+    }
+    assert!(after < 0.02 * before, "{before} A → {after} A");
+}

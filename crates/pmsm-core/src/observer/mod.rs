@@ -112,3 +112,94 @@ pub(crate) fn rotor_angle_from_emf(phi: Angle, forward: bool) -> Angle {
         phi + Angle::HALF_PI
     }
 }
+
+pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
+
+/// Which estimator a drive runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EstimatorKind {
+    /// Seed 000 NLO.
+    Nlo,
+    /// Seed 000 AO.
+    Ao,
+    /// Seed 000 MRAS on the AO.
+    MrasEmf,
+    /// Seed 001 current-model MRAS.
+    MrasCurrent,
+}
+
+impl EstimatorKind {
+    /// Back-EMF estimators see nothing at standstill: they need an open-loop start.
+    pub fn needs_open_loop_start(self) -> bool {
+        !matches!(self, EstimatorKind::MrasCurrent)
+    }
+}
+
+/// Any estimator of the crate, without dynamic dispatch (no allocation, one concrete type
+/// for the drive and the C interface).
+#[derive(Clone, Copy, Debug)]
+#[allow(clippy::large_enum_variant)]
+pub enum AnyEstimator {
+    /// See [`Nlo`].
+    Nlo(Nlo),
+    /// See [`Ao`].
+    Ao(Ao),
+    /// See [`MrasEmf`].
+    MrasEmf(MrasEmf),
+    /// See [`MrasCurrent`].
+    MrasCurrent(MrasCurrent),
+}
+
+impl AnyEstimator {
+    /// Which one it is.
+    pub fn kind(&self) -> EstimatorKind {
+        match self {
+            AnyEstimator::Nlo(_) => EstimatorKind::Nlo,
+            AnyEstimator::Ao(_) => EstimatorKind::Ao,
+            AnyEstimator::MrasEmf(_) => EstimatorKind::MrasEmf,
+            AnyEstimator::MrasCurrent(_) => EstimatorKind::MrasCurrent,
+        }
+    }
+}
+
+impl Estimator for AnyEstimator {
+    fn update(&mut self, input: &ObserverInput) -> Estimate {
+        match self {
+            AnyEstimator::Nlo(e) => e.update(input),
+            AnyEstimator::Ao(e) => e.update(input),
+            AnyEstimator::MrasEmf(e) => e.update(input),
+            AnyEstimator::MrasCurrent(e) => e.update(input),
+        }
+    }
+
+    fn estimate(&self) -> Estimate {
+        match self {
+            AnyEstimator::Nlo(e) => e.estimate(),
+            AnyEstimator::Ao(e) => e.estimate(),
+            AnyEstimator::MrasEmf(e) => e.estimate(),
+            AnyEstimator::MrasCurrent(e) => e.estimate(),
+        }
+    }
+
+    fn reset(&mut self, theta: Angle, omega: Pu) {
+        match self {
+            AnyEstimator::Nlo(e) => e.reset(theta, omega),
+            AnyEstimator::Ao(e) => e.reset(theta, omega),
+            AnyEstimator::MrasEmf(e) => e.reset(theta, omega),
+            AnyEstimator::MrasCurrent(e) => e.reset(theta, omega),
+        }
+    }
+}
+
+/// Default gain `g` of the seed-000 observers for `motor`: three times its rated electrical
+/// speed (the base speed when it has no rating), within `[100, 0.25/T_s]` rad/s. Motor A
+/// (1200 r/min, 3 pole pairs) gets 1131 rad/s; seed 000 uses 1000.
+pub fn default_observer_gain(
+    motor: &crate::params::MotorParams,
+    base: &crate::units::PerUnit,
+) -> f64 {
+    let rated_e = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
+        n * core::f64::consts::TAU / 60.0 * motor.p()
+    });
+    (3.0 * rated_e).clamp(100.0, 0.25 / base.sample_s)
+}

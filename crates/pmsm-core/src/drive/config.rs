@@ -1,0 +1,244 @@
+//! What a drive is made of: a design in SI units with defaults from the motor and inverter,
+//! and the fixed-point configuration computed from it once.
+
+use crate::Angle;
+use crate::control::current::{CurrentConfig, CurrentDesign};
+use crate::control::speed::{SpeedConfig, SpeedDesign};
+use crate::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode};
+use crate::error::ConfigError;
+use crate::ipd::{IpdConfig, IpdDesign};
+use crate::num::{Pu, pu_from_f64};
+use crate::observer::{
+    AnyEstimator, Ao, AoConfig, EstimatorKind, MrasCurrent, MrasCurrentConfig, MrasCurrentGains,
+    MrasEmf, MrasEmfConfig, Nlo, NloConfig, default_observer_gain,
+};
+use crate::params::{InverterParams, MotorParams, in_range, positive};
+use crate::svpwm::SvpwmConfig;
+use crate::units::PerUnit;
+
+/// How the drive finds the rotor before it runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StartupMode {
+    /// Voltage pulses, saliency and saturation (seed 001 §4).
+    Ipd,
+    /// A d-axis current along the α axis pulls the rotor to `θ = 0` first.
+    Align,
+    /// The rotor angle is known (electrical).
+    Known(Angle),
+}
+
+/// The open-loop current-vector start of the back-EMF estimators, and the alignment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpenLoopDesign {
+    /// Current of the alignment and of the open-loop start, A peak.
+    pub current_a: f64,
+    /// Acceleration of the imposed frame, electrical rad/s².
+    pub accel_rad_s2: f64,
+    /// Speed at which the estimator takes over, electrical rad/s.
+    pub handover_speed_rad_s: f64,
+    /// Duration of the alignment, s.
+    pub align_time_s: f64,
+}
+
+impl OpenLoopDesign {
+    /// Rated peak current (the per-unit base); an acceleration that takes 30 % of the torque
+    /// that current makes, `0.3 p K_T I / J`; handover at 10 % of the rated electrical speed
+    /// (or of the base speed); alignment over 0.5 s.
+    pub fn default_for(motor: &MotorParams, base: &PerUnit) -> Self {
+        let rated_e = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
+            n * core::f64::consts::TAU / 60.0 * motor.p()
+        });
+        Self {
+            current_a: base.current_a,
+            accel_rad_s2: 0.3 * motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2,
+            handover_speed_rad_s: 0.1 * rated_e,
+            align_time_s: 0.5,
+        }
+    }
+}
+
+/// Protection thresholds checked every sample (the reliability work extends this list).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Protection {
+    /// Phase current that trips the drive, A.
+    pub overcurrent_a: f64,
+    /// Bus voltage below which the drive trips, V.
+    pub vdc_min_v: f64,
+    /// Bus voltage above which the drive trips, V.
+    pub vdc_max_v: f64,
+}
+
+impl Protection {
+    /// Three times the rated peak current (the detector's pulses reach two), the bus within
+    /// 50–125 % of nominal.
+    pub fn default_for(inverter: &InverterParams, base: &PerUnit) -> Self {
+        Self {
+            overcurrent_a: 3.0 * base.current_a,
+            vdc_min_v: 0.5 * inverter.vdc_v,
+            vdc_max_v: 1.25 * inverter.vdc_v,
+        }
+    }
+}
+
+/// Everything a drive is designed from, SI units. [`DriveDesign::default_for`] computes every
+/// default from the motor and the inverter; change fields to override.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveDesign {
+    /// The estimator.
+    pub estimator: EstimatorKind,
+    /// Gain `g` of the seed-000 estimators, rad/s.
+    pub observer_gain_rad_s: f64,
+    /// Adaptation gains of the current-model MRAS.
+    pub mras_current: MrasCurrentGains,
+    /// Current loops.
+    pub current: CurrentDesign,
+    /// Speed loop.
+    pub speed: SpeedDesign,
+    /// Dead-time compensation ([`DeadTimeMode::Off`] disables it).
+    pub deadtime: DeadTimeDesign,
+    /// Initial position detection.
+    pub ipd: IpdDesign,
+    /// How the drive starts.
+    pub startup: StartupMode,
+    /// Open-loop start and alignment.
+    pub open_loop: OpenLoopDesign,
+    /// Trip thresholds.
+    pub protection: Protection,
+}
+
+impl DriveDesign {
+    /// Defaults for `motor` on `inverter` with the bases `base`, running `estimator`.
+    pub fn default_for(
+        motor: &MotorParams,
+        inverter: &InverterParams,
+        base: &PerUnit,
+        estimator: EstimatorKind,
+    ) -> Self {
+        Self {
+            estimator,
+            observer_gain_rad_s: default_observer_gain(motor, base),
+            mras_current: MrasCurrentGains::default_for(motor, base),
+            current: CurrentDesign::default_for(base),
+            speed: SpeedDesign::default_for(base),
+            deadtime: DeadTimeDesign::default_for(motor, inverter),
+            ipd: IpdDesign::default(),
+            startup: if estimator == EstimatorKind::MrasCurrent {
+                StartupMode::Ipd
+            } else {
+                StartupMode::Align
+            },
+            open_loop: OpenLoopDesign::default_for(motor, base),
+            protection: Protection::default_for(inverter, base),
+        }
+    }
+}
+
+/// The fixed-point configuration of a drive.
+#[derive(Clone, Copy, Debug)]
+pub struct DriveConfig {
+    /// Per-unit bases and sample period.
+    pub base: PerUnit,
+    /// The design it was computed from.
+    pub design: DriveDesign,
+    pub(crate) estimator: AnyEstimator,
+    pub(crate) current: CurrentConfig,
+    pub(crate) speed: SpeedConfig,
+    pub(crate) deadtime: DeadTimeConfig,
+    pub(crate) svpwm: SvpwmConfig,
+    pub(crate) ipd: IpdConfig,
+    pub(crate) open_loop: OpenLoopConfig,
+    pub(crate) protection: ProtectionConfig,
+}
+
+/// [`OpenLoopDesign`] in per unit and samples.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct OpenLoopConfig {
+    pub current: Pu,
+    /// Speed increment per sample, per unit.
+    pub accel: Pu,
+    pub handover_speed: Pu,
+    pub align_samples: u32,
+    /// Rotation per sample, angle LSB per LSB of per-unit speed.
+    pub turn_per_speed: crate::num::Gain,
+}
+
+/// [`Protection`] in per unit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ProtectionConfig {
+    pub overcurrent: Pu,
+    pub vdc_min: Pu,
+    pub vdc_max: Pu,
+}
+
+impl DriveConfig {
+    /// Computes and checks every coefficient for `motor` on `inverter` at `sample_hz`.
+    pub fn new(
+        motor: &MotorParams,
+        inverter: &InverterParams,
+        sample_hz: f64,
+        design: DriveDesign,
+    ) -> Result<Self, ConfigError> {
+        let base = PerUnit::new(motor, inverter, sample_hz)?;
+        let g = design.observer_gain_rad_s;
+        let estimator = match design.estimator {
+            EstimatorKind::Nlo => AnyEstimator::Nlo(Nlo::new(NloConfig::new(motor, &base, g)?)),
+            EstimatorKind::Ao => AnyEstimator::Ao(Ao::new(AoConfig::new(motor, &base, g)?)),
+            EstimatorKind::MrasEmf => {
+                AnyEstimator::MrasEmf(MrasEmf::new(MrasEmfConfig::paper(motor, &base, g)?))
+            }
+            EstimatorKind::MrasCurrent => AnyEstimator::MrasCurrent(MrasCurrent::new(
+                MrasCurrentConfig::new(motor, &base, design.mras_current)?,
+            )),
+        };
+        let ol = design.open_loop;
+        let ts = base.sample_s;
+        positive("open_loop.current_a", ol.current_a)?;
+        positive("open_loop.accel_rad_s2", ol.accel_rad_s2)?;
+        in_range(
+            "open_loop.handover_speed_rad_s",
+            ol.handover_speed_rad_s,
+            1e-3 * base.omega_e_rad_s,
+            base.omega_e_rad_s,
+        )?;
+        in_range("open_loop.align_time_s", ol.align_time_s, 0.0, 100.0)?;
+        let p = design.protection;
+        positive("protection.overcurrent_a", p.overcurrent_a)?;
+        positive("protection.vdc_min_v", p.vdc_min_v)?;
+        in_range("protection.vdc_max_v", p.vdc_max_v, p.vdc_min_v, 1e4)?;
+        Ok(Self {
+            estimator,
+            current: CurrentConfig::new(motor, &base, design.current)?,
+            speed: SpeedConfig::new(motor, &base, design.speed)?,
+            deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,
+            svpwm: SvpwmConfig::default(),
+            ipd: IpdConfig::new(motor, &base, design.ipd)?,
+            open_loop: OpenLoopConfig {
+                current: pu_from_f64(ol.current_a / base.current_a),
+                accel: pu_from_f64(ol.accel_rad_s2 * ts / base.omega_e_rad_s),
+                handover_speed: pu_from_f64(ol.handover_speed_rad_s / base.omega_e_rad_s),
+                align_samples: libm::round(ol.align_time_s / ts) as u32,
+                turn_per_speed: crate::num::Gain::new(
+                    base.omega_e_rad_s * ts / (Angle::RAD_PER_LSB * (1u64 << 24) as f64),
+                )
+                .ok_or(ConfigError::Gain {
+                    key: "sample_hz",
+                    value: sample_hz,
+                    min: 0.0,
+                    max: 0.0,
+                })?,
+            },
+            protection: ProtectionConfig {
+                overcurrent: pu_from_f64(p.overcurrent_a / base.current_a),
+                vdc_min: pu_from_f64(p.vdc_min_v / base.voltage_v),
+                vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
+            },
+            base,
+            design,
+        })
+    }
+
+    /// Whether dead-time compensation is on.
+    pub fn deadtime_compensation(&self) -> bool {
+        self.design.deadtime.mode != DeadTimeMode::Off
+    }
+}

@@ -1,0 +1,368 @@
+//! The sensorless drive: one [`Drive::step`] per control sample, from sampled phase currents
+//! and bus voltage to three duties (seed 001 Fig. 1, equations.md §4).
+//!
+//! ```text
+//!  i_abc, v_dc ─► protection ─► Clarke ─► estimator (i, v over the last period) ─► θ̂, ω̂
+//!                                   │                                              │
+//!         ω* ─► IP speed loop ─► i_q* ─► PI current loops in the θ̂ frame ◄── Park ◄┘
+//!                                          │ v_dq
+//!                          inverse Park at θ̂ + ω̂T_s/2 ─► + dead-time compensation ─► SVPWM ─► duties
+//!                                                              (the voltage the estimator will see ◄┘)
+//! ```
+//!
+//! States: `Idle` → (`Ipd` | `Align`) → (`OpenLoop` for the back-EMF estimators) → `Run`;
+//! any fault latches `Fault` with the outputs off until [`Drive::clear_fault`]; [`Drive::stop`]
+//! returns to `Idle`.
+//!
+//! Timing: the currents are sampled at `t_k`, the duties returned apply over `[t_k, t_{k+1})`
+//! (the computation is assumed to finish before the first switching edge of the period).
+
+mod config;
+mod startup;
+
+pub use config::{DriveConfig, DriveDesign, OpenLoopDesign, Protection, StartupMode};
+
+use crate::angle::Angle;
+use crate::control::current::{CurrentController, CurrentInput};
+use crate::control::speed::SpeedController;
+use crate::deadtime::CurrentSource;
+use crate::frames::{Abc, AlphaBeta, Dq, clarke, inverse_park, park};
+use crate::ipd::{Ipd, IpdFault, IpdResult};
+use crate::num::Pu;
+use crate::observer::{AnyEstimator, Estimate, Estimator, ObserverInput};
+use crate::svpwm::Duties;
+use startup::OpenLoop;
+
+/// Why the drive stopped switching. Latched until [`Drive::clear_fault`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// A phase current beyond the protection threshold (its value, per unit).
+    OverCurrent(Pu),
+    /// The bus voltage below its minimum (per unit).
+    BusUnderVoltage(Pu),
+    /// The bus voltage above its maximum (per unit).
+    BusOverVoltage(Pu),
+    /// The initial position detection failed.
+    InitialPosition(IpdFault),
+    /// At the end of the open-loop start the estimator disagreed with the imposed frame
+    /// (angle difference, speed per unit).
+    Handover(Angle, Pu),
+}
+
+impl Fault {
+    /// A short name (CSV files, logs).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Fault::OverCurrent(_) => "overcurrent",
+            Fault::BusUnderVoltage(_) => "bus_undervoltage",
+            Fault::BusOverVoltage(_) => "bus_overvoltage",
+            Fault::InitialPosition(_) => "initial_position",
+            Fault::Handover(_, _) => "handover",
+        }
+    }
+}
+
+/// What the drive is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriveState {
+    /// Outputs off, waiting for [`Drive::start`].
+    Idle,
+    /// Detecting the initial position.
+    Ipd,
+    /// Pulling the rotor to `θ = 0`.
+    Align,
+    /// Open-loop current-vector start (back-EMF estimators).
+    OpenLoop,
+    /// Sensorless closed loop.
+    Run,
+    /// Outputs off after a fault.
+    Fault(Fault),
+}
+
+/// One control sample's measurements, per unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DriveInput {
+    /// Phase currents sampled at the PWM centre, per unit of `I_b`.
+    pub i_abc: Abc,
+    /// DC bus voltage, per unit of `V_b` (√3 at the nominal bus).
+    pub vdc: Pu,
+}
+
+/// What to do over the next PWM period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DriveOutput {
+    /// Leg duties (meaningless when `pwm_on` is false).
+    pub duties: Duties,
+    /// Switch (true) or turn every switch off (false).
+    pub pwm_on: bool,
+}
+
+/// What the drive computed at the last sample, for logs and plots.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Telemetry {
+    /// The estimate.
+    pub estimate: Estimate,
+    /// The angle the controller used (the estimate, or the imposed frame while starting).
+    pub theta: Angle,
+    /// Measured current in the controller's frame.
+    pub i_dq: Dq,
+    /// Current reference.
+    pub i_ref: Dq,
+    /// Voltage commanded to the modulator after its limit, αβ.
+    pub v: AlphaBeta,
+    /// The modulator limited the voltage.
+    pub saturated: bool,
+}
+
+/// The drive: configuration and state.
+#[derive(Clone, Copy, Debug)]
+pub struct Drive {
+    config: DriveConfig,
+    state: DriveState,
+    estimator: AnyEstimator,
+    current: CurrentController,
+    speed: SpeedController,
+    ipd: Ipd,
+    open_loop: OpenLoop,
+    speed_ref: Pu,
+    /// Voltage applied over the current period, as the estimator should see it.
+    v_est: AlphaBeta,
+    telemetry: Telemetry,
+    ipd_result: Option<IpdResult>,
+}
+
+impl Drive {
+    /// A drive in `Idle`.
+    pub fn new(config: DriveConfig) -> Self {
+        Self {
+            estimator: config.estimator,
+            current: CurrentController::new(config.current),
+            speed: SpeedController::new(config.speed),
+            ipd: Ipd::new(config.ipd),
+            open_loop: OpenLoop::default(),
+            config,
+            state: DriveState::Idle,
+            speed_ref: Pu::ZERO,
+            v_est: AlphaBeta::default(),
+            telemetry: Telemetry::default(),
+            ipd_result: None,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DriveConfig {
+        &self.config
+    }
+
+    /// The state.
+    pub fn state(&self) -> DriveState {
+        self.state
+    }
+
+    /// What the last step computed.
+    pub fn telemetry(&self) -> &Telemetry {
+        &self.telemetry
+    }
+
+    /// The result of the last initial position detection.
+    pub fn ipd_result(&self) -> Option<IpdResult> {
+        self.ipd_result
+    }
+
+    /// Sets the speed reference, electrical, per unit of `ω_b`.
+    pub fn set_speed_ref(&mut self, omega: Pu) {
+        self.speed_ref = omega;
+    }
+
+    /// Starts from `Idle` with the configured start-up; does nothing in other states.
+    pub fn start(&mut self) {
+        if self.state != DriveState::Idle {
+            return;
+        }
+        self.current.reset();
+        self.v_est = AlphaBeta::default();
+        self.state = match self.config.design.startup {
+            StartupMode::Ipd => {
+                self.ipd.restart();
+                DriveState::Ipd
+            }
+            StartupMode::Align => {
+                self.open_loop = OpenLoop::align();
+                DriveState::Align
+            }
+            StartupMode::Known(theta) => self.rotor_found(theta),
+        };
+    }
+
+    /// Turns the outputs off and returns to `Idle` (also from a fault).
+    pub fn stop(&mut self) {
+        self.state = DriveState::Idle;
+    }
+
+    /// Leaves a fault for `Idle`; does nothing in other states.
+    pub fn clear_fault(&mut self) {
+        if let DriveState::Fault(_) = self.state {
+            self.state = DriveState::Idle;
+        }
+    }
+
+    /// The rotor is at `theta`: start the estimator there and run, or start open loop.
+    fn rotor_found(&mut self, theta: Angle) -> DriveState {
+        self.estimator.reset(theta, Pu::ZERO);
+        self.current.reset();
+        self.speed.reset(Pu::ZERO, Pu::ZERO);
+        if self.estimator.kind().needs_open_loop_start() {
+            self.open_loop = OpenLoop::start(theta, self.speed_ref < Pu::ZERO);
+            DriveState::OpenLoop
+        } else {
+            DriveState::Run
+        }
+    }
+
+    fn trip(&mut self, fault: Fault) -> DriveOutput {
+        self.state = DriveState::Fault(fault);
+        self.v_est = AlphaBeta::default();
+        OFF
+    }
+
+    /// One control sample. Integer arithmetic only; never panics, never allocates.
+    pub fn step(&mut self, input: &DriveInput) -> DriveOutput {
+        if matches!(self.state, DriveState::Idle | DriveState::Fault(_)) {
+            return OFF;
+        }
+        if let Some(fault) = self.protection(input) {
+            return self.trip(fault);
+        }
+        let i = clarke(input.i_abc);
+        // The estimator always sees the period that just ended.
+        let estimate = self.estimator.update(&ObserverInput { i, v: self.v_est });
+        self.telemetry.estimate = estimate;
+        match self.state {
+            DriveState::Ipd => {
+                let out = self.ipd.step(i, input.vdc);
+                self.v_est = out.v;
+                self.telemetry.v = out.v;
+                match out.done {
+                    None => DriveOutput {
+                        duties: out.duties,
+                        pwm_on: out.pwm_on,
+                    },
+                    Some(Err(f)) => self.trip(Fault::InitialPosition(f)),
+                    Some(Ok(r)) => {
+                        self.ipd_result = Some(r);
+                        self.state = self.rotor_found(r.theta);
+                        self.v_est = AlphaBeta::default();
+                        self.telemetry.estimate = self.estimator.estimate();
+                        DriveOutput {
+                            duties: Duties::HALF,
+                            pwm_on: true,
+                        }
+                    }
+                }
+            }
+            DriveState::Align => {
+                let (theta, i_ref) = self.open_loop.align_frame(&self.config);
+                if self.open_loop.align_done(&self.config) {
+                    self.state = self.rotor_found(Angle::ZERO);
+                    self.telemetry.estimate = self.estimator.estimate();
+                }
+                self.control(i, input.vdc, theta, Pu::ZERO, i_ref)
+            }
+            DriveState::OpenLoop => {
+                let (theta, omega, i_ref) = self.open_loop.advance(&self.config);
+                if self.open_loop.at_handover(&self.config) {
+                    match self.open_loop.handover(&estimate, &self.config) {
+                        Ok(iq) => {
+                            self.speed.reset(estimate.omega, iq);
+                            self.state = DriveState::Run;
+                        }
+                        Err(fault) => return self.trip(fault),
+                    }
+                }
+                self.control(i, input.vdc, theta, omega, i_ref)
+            }
+            DriveState::Run => {
+                let iq_ref = self.speed.step(self.speed_ref, estimate.omega).iq_ref;
+                self.control(
+                    i,
+                    input.vdc,
+                    estimate.theta,
+                    estimate.omega,
+                    Dq {
+                        d: Pu::ZERO,
+                        q: iq_ref,
+                    },
+                )
+            }
+            DriveState::Idle | DriveState::Fault(_) => OFF,
+        }
+    }
+
+    /// Current loops in the frame at `theta` turning at `omega`, dead-time compensation and
+    /// modulation (seed 001 Fig. 1).
+    fn control(
+        &mut self,
+        i: AlphaBeta,
+        vdc: Pu,
+        theta: Angle,
+        omega: Pu,
+        i_ref: Dq,
+    ) -> DriveOutput {
+        let c = &self.config;
+        let sc = theta.sin_cos();
+        let i_dq = park(i, sc);
+        let out = self.current.step(&CurrentInput {
+            i_ref,
+            i: i_dq,
+            omega,
+            vdc,
+            hold: self.telemetry.saturated,
+        });
+        // The voltage acts over the coming period: rotate it to the frame's mid-period angle.
+        let half = Angle(c.open_loop.turn_per_speed.apply_bits(omega.to_bits()) / 2);
+        let sc_mid = (theta + half).sin_cos();
+        let v_ref = inverse_park(out.v, sc_mid);
+        let i_dt = match c.deadtime.design.source {
+            CurrentSource::Measured => i,
+            CurrentSource::Reference => inverse_park(i_ref, sc_mid),
+        };
+        let v_dt = c.deadtime.error_vector(i_dt, vdc);
+        let m = c.svpwm.modulate(c.deadtime.command(v_ref, v_dt), vdc);
+        self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
+        self.telemetry.theta = theta;
+        self.telemetry.i_dq = i_dq;
+        self.telemetry.i_ref = i_ref;
+        self.telemetry.v = m.v;
+        self.telemetry.saturated = m.saturated || out.saturated_d || out.saturated_q;
+        DriveOutput {
+            duties: m.duties,
+            pwm_on: true,
+        }
+    }
+
+    /// The trip checks of every sample.
+    fn protection(&self, input: &DriveInput) -> Option<Fault> {
+        let p = &self.config.protection;
+        let worst = input
+            .i_abc
+            .a
+            .saturating_abs()
+            .max(input.i_abc.b.saturating_abs())
+            .max(input.i_abc.c.saturating_abs());
+        if worst > p.overcurrent {
+            Some(Fault::OverCurrent(worst))
+        } else if input.vdc < p.vdc_min {
+            Some(Fault::BusUnderVoltage(input.vdc))
+        } else if input.vdc > p.vdc_max {
+            Some(Fault::BusOverVoltage(input.vdc))
+        } else {
+            None
+        }
+    }
+}
+
+/// Outputs off.
+const OFF: DriveOutput = DriveOutput {
+    duties: Duties::HALF,
+    pwm_on: false,
+};
