@@ -69,7 +69,7 @@ impl RefDirection {
         }
     }
 
-    fn update(&mut self, phi: f64, valid: bool) -> bool {
+    fn update(&mut self, phi: f64, valid: bool, slow: bool) -> bool {
         if !valid {
             self.prev = None;
             return self.forward;
@@ -80,9 +80,9 @@ impl RefDirection {
                 self.mean += self.alpha * (step - self.mean);
             }
         }
-        if self.forward && self.mean < -self.threshold_rad {
+        if slow && self.forward && self.mean < -self.threshold_rad {
             self.forward = false;
-        } else if !self.forward && self.mean > self.threshold_rad {
+        } else if slow && !self.forward && self.mean > self.threshold_rad {
             self.forward = true;
         }
         self.forward
@@ -91,7 +91,10 @@ impl RefDirection {
 
 fn estimate_from_emf(emf: [f64; 2], psi: f64, min_emf: f64, dir: &mut RefDirection) -> Est {
     let phi = emf[1].atan2(emf[0]);
-    let forward = dir.update(phi, emf[0].hypot(emf[1]) > min_emf);
+    let mag = emf[0].hypot(emf[1]);
+    let flip = min_emf / pmsm_core::observer::nlo::MIN_EMF_PU
+        * pmsm_core::observer::direction::FLIP_SPEED_PU;
+    let forward = dir.update(phi, mag > min_emf, mag < flip);
     let speed = emf[0].hypot(emf[1]) / psi;
     Est {
         theta_rad: if forward {

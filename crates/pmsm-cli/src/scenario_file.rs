@@ -144,9 +144,10 @@ pub struct Control {
     pub observer: ObserverKind,
     /// Start-up mode.
     pub startup: Startup,
-    /// Dead-time compensation on/off.
+    /// Dead-time compensation: `true` (both), `false` (off), or `"command"`, `"estimator"`,
+    /// `"both"`, `"off"`.
     #[serde(default)]
-    pub deadtime_compensation: bool,
+    pub deadtime_compensation: Compensation,
     /// Observer gain, rad/s (seed-000 estimators).
     pub observer_gain: Option<f64>,
     /// Current-loop bandwidth, Hz.
@@ -157,6 +158,45 @@ pub struct Control {
     pub mras_bandwidth_hz: Option<f64>,
     /// Current limit, A peak (default: twice rated peak).
     pub current_limit_a: Option<f64>,
+}
+
+/// Where dead-time compensation applies (`deadtime_compensation`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(untagged)]
+pub enum Compensation {
+    /// `true`: both; `false`: off.
+    Switch(bool),
+    /// By name.
+    Mode(CompensationMode),
+    /// Not given: off.
+    #[default]
+    #[serde(skip)]
+    Unset,
+}
+
+/// The named compensation modes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CompensationMode {
+    /// No compensation.
+    Off,
+    /// On the voltage command only.
+    Command,
+    /// On the estimator's voltage only (seed 001 eq. 9).
+    Estimator,
+    /// Both.
+    Both,
+}
+
+impl Compensation {
+    /// The mode.
+    pub fn mode(self) -> CompensationMode {
+        match self {
+            Compensation::Switch(true) => CompensationMode::Both,
+            Compensation::Switch(false) | Compensation::Unset => CompensationMode::Off,
+            Compensation::Mode(m) => m,
+        }
+    }
 }
 
 /// `[sensing]` of a scenario.

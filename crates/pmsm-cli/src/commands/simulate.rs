@@ -6,7 +6,7 @@
 //! and the voltage are the controller's.
 
 use crate::plot;
-use crate::scenario_file::{self, InverterKind, ObserverKind, Scenario, Startup};
+use crate::scenario_file::{self, CompensationMode, InverterKind, ObserverKind, Scenario, Startup};
 use anyhow::{Context, Result, anyhow, bail};
 use pmsm_core::deadtime::DeadTimeMode;
 use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState, StartupMode};
@@ -148,9 +148,12 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
         Startup::Align => StartupMode::Align,
         Startup::Known => StartupMode::Known(Angle::from_rad(sc.theta0_rad)),
     };
-    if !sc.control.deadtime_compensation {
-        design.deadtime.mode = DeadTimeMode::Off;
-    }
+    design.deadtime.mode = match sc.control.deadtime_compensation.mode() {
+        CompensationMode::Off => DeadTimeMode::Off,
+        CompensationMode::Command => DeadTimeMode::Command,
+        CompensationMode::Estimator => DeadTimeMode::Estimator,
+        CompensationMode::Both => DeadTimeMode::Both,
+    };
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
     let c = &sc.control;
@@ -381,6 +384,13 @@ pub fn run(args: &Args) -> Result<()> {
                 ph.faults.join(", ")
             }
         );
+    }
+    if let Some(r) = result
+        .rows
+        .iter()
+        .find(|r| matches!(r.state, DriveState::Fault(_)))
+    {
+        println!("  first fault at t = {:.4} s: {:?}", r.t_s, r.state);
     }
     println!("  output     {}", args.output.display());
     if let Some(path) = &args.plot {

@@ -125,6 +125,8 @@ pub struct Drive {
     ipd: Ipd,
     open_loop: OpenLoop,
     speed_ref: Pu,
+    /// Filtered estimated speed for the speed loop.
+    speed_filtered: Pu,
     /// Voltage applied over the current period, as the estimator should see it.
     v_est: AlphaBeta,
     telemetry: Telemetry,
@@ -143,6 +145,7 @@ impl Drive {
             config,
             state: DriveState::Idle,
             speed_ref: Pu::ZERO,
+            speed_filtered: Pu::ZERO,
             v_est: AlphaBeta::default(),
             telemetry: Telemetry::default(),
             ipd_result: None,
@@ -237,6 +240,10 @@ impl Drive {
         // The estimator always sees the period that just ended.
         let estimate = self.estimator.update(&ObserverInput { i, v: self.v_est });
         self.telemetry.estimate = estimate;
+        let delta = estimate.omega.saturating_sub(self.speed_filtered);
+        self.speed_filtered = self
+            .speed_filtered
+            .saturating_add(self.config.speed_filter.apply(delta));
         match self.state {
             DriveState::Ipd => {
                 let out = self.ipd.step(i, input.vdc);
@@ -273,6 +280,7 @@ impl Drive {
                 if self.open_loop.at_handover(&self.config) {
                     match self.open_loop.handover(&estimate, &self.config) {
                         Ok(iq) => {
+                            self.speed_filtered = estimate.omega;
                             self.speed.reset(estimate.omega, iq);
                             self.state = DriveState::Run;
                         }
@@ -282,7 +290,10 @@ impl Drive {
                 self.control(i, input.vdc, theta, omega, i_ref)
             }
             DriveState::Run => {
-                let iq_ref = self.speed.step(self.speed_ref, estimate.omega).iq_ref;
+                let iq_ref = self
+                    .speed
+                    .step(self.run_speed_ref(), self.speed_filtered)
+                    .iq_ref;
                 self.control(
                     i,
                     input.vdc,
@@ -295,6 +306,22 @@ impl Drive {
                 )
             }
             DriveState::Idle | DriveState::Fault(_) => OFF,
+        }
+    }
+
+    /// The speed reference of the closed loop: a back-EMF estimator cannot run below the
+    /// handover speed, so the reference is held at that magnitude (in its direction) there.
+    fn run_speed_ref(&self) -> Pu {
+        if !self.estimator.kind().needs_open_loop_start() {
+            return self.speed_ref;
+        }
+        let min = self.config.open_loop.handover_speed;
+        if self.speed_ref.saturating_abs() >= min {
+            self.speed_ref
+        } else if self.speed_ref < Pu::ZERO {
+            min.saturating_neg()
+        } else {
+            min
         }
     }
 

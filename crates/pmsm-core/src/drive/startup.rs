@@ -4,19 +4,27 @@
 //!
 //! # Open-loop start
 //!
-//! The current loops regulate `(0, ±I)` in an imposed frame `θ_ol` that accelerates from the
-//! detected rotor angle at a constant rate. The current vector leads the imposed d axis by 90°,
-//! so the rotor settles where the torque `K_T I cos(θ_ol − θ)` equals what the acceleration and
-//! the load need: its d axis between the imposed frame (full torque) and the current vector
-//! (no torque), `δ = θ − θ_ol ∈ [0, 90°]` turning forwards (mirrored backwards).
+//! The current loops regulate `(I, 0)` in an imposed frame `θ_ol` that starts at the detected
+//! rotor angle (the current along the rotor's d axis: no torque, no jerk) and accelerates at a
+//! constant rate. The rotor lags the current vector by the angle where the torque
+//! `K_T I sin(θ_ol − θ)` equals what the acceleration and the load need:
+//! `δ = θ − θ_ol ∈ [−90°, 0]` turning forwards (mirrored backwards). Nothing but friction damps
+//! the rotor's swing about that angle; the closed loop does, once it has taken over.
 //!
 //! # Handover
 //!
-//! At the handover speed the estimator has seen the EMF for a while. It takes over when its
-//! angle lies where the rotor can be, `δ̂ ∈ [−HANDOVER_MARGIN, 90° + HANDOVER_MARGIN]`, and
-//! its speed within [`HANDOVER_SPEED_TOLERANCE`] of the imposed one; otherwise the drive trips
+//! At the handover speed the estimator has seen the EMF for a while. The rotor swings about its
+//! lag angle, so the check is what physics allows whatever the swing: the estimated angle
+//! within a quarter turn (plus [`HANDOVER_MARGIN`]) of the current vector, which rules out the
+//! dangerous false lock half a turn away, and the estimated speed in the commanded direction
+//! and at least [`HANDOVER_SPEED_TOLERANCE`] of the imposed one. Otherwise the drive trips
 //! with a named fault rather than closing the loop on a wrong angle. The speed loop starts
-//! from the torque current the rotor was getting, `I cos δ̂`, so the handover is bumpless.
+//! from the torque current the rotor was getting, `I sin(−δ̂)`, so the handover is bumpless.
+//!
+//! # Alignment
+//!
+//! The d current along `θ = 0` ramps up over the first half of the alignment time and holds
+//! over the second, so the rotor creeps into place instead of swinging through it.
 
 use super::Fault;
 use super::config::DriveConfig;
@@ -27,7 +35,7 @@ use crate::observer::Estimate;
 
 /// Tolerance of the handover angle check beyond the physical range [0, 90°].
 pub const HANDOVER_MARGIN: Angle = Angle(1 << 28); // 22.5°
-/// Largest relative speed difference accepted at the handover.
+/// Smallest estimated speed at the handover, as a fraction of the imposed one.
 pub const HANDOVER_SPEED_TOLERANCE: f64 = 0.25;
 
 /// State of the alignment and of the open-loop start.
@@ -45,16 +53,19 @@ impl OpenLoop {
         Self::default()
     }
 
-    /// The alignment's frame (θ = 0) and current reference `(I, 0)`; counts the sample.
+    /// The alignment's frame (θ = 0) and current reference `(I, 0)`, ramped over the first
+    /// half of the alignment; counts the sample.
     pub fn align_frame(&mut self, c: &DriveConfig) -> (Angle, Dq) {
         self.count = self.count.saturating_add(1);
-        (
-            Angle::ZERO,
-            Dq {
-                d: c.open_loop.current,
-                q: Pu::ZERO,
-            },
-        )
+        let half = (c.open_loop.align_samples / 2).max(1);
+        let i = if self.count >= half {
+            c.open_loop.current
+        } else {
+            // I · count/half in i64: the ramp is exact to an LSB and cannot overflow.
+            let bits = c.open_loop.current.to_bits() as i64 * self.count as i64 / half as i64;
+            Pu::from_bits(bits as i32)
+        };
+        (Angle::ZERO, Dq { d: i, q: Pu::ZERO })
     }
 
     /// The alignment has lasted its time.
@@ -72,7 +83,8 @@ impl OpenLoop {
         }
     }
 
-    /// Advances the imposed frame by one sample: its angle, speed and current reference.
+    /// Advances the imposed frame by one sample: its angle, speed and current reference
+    /// `(I, 0)` (the current vector is the imposed d axis).
     pub fn advance(&mut self, c: &DriveConfig) -> (Angle, Pu, Dq) {
         let ol = &c.open_loop;
         let step = if self.reverse {
@@ -82,12 +94,14 @@ impl OpenLoop {
         };
         self.omega = self.omega.saturating_add(step);
         self.theta = self.theta + Angle(ol.turn_per_speed.apply_bits(self.omega.to_bits()));
-        let iq = if self.reverse {
-            ol.current.saturating_neg()
-        } else {
-            ol.current
-        };
-        (self.theta, self.omega, Dq { d: Pu::ZERO, q: iq })
+        (
+            self.theta,
+            self.omega,
+            Dq {
+                d: ol.current,
+                q: Pu::ZERO,
+            },
+        )
     }
 
     /// The imposed frame has reached the handover speed.
@@ -98,25 +112,30 @@ impl OpenLoop {
     /// Checks the estimate against the imposed frame; on success the torque current the rotor
     /// gets in the estimated frame, per unit.
     pub fn handover(&self, est: &Estimate, c: &DriveConfig) -> Result<Pu, Fault> {
-        // δ̂ measured in the sense of rotation.
+        // δ̂ = θ̂ − θ_ol, measured in the sense of rotation.
         let delta = if self.reverse {
             self.theta - est.theta
         } else {
             est.theta - self.theta
         };
-        let angle_ok =
-            delta.0 >= -HANDOVER_MARGIN.0 && delta.0 <= (Angle::HALF_PI.0 + HANDOVER_MARGIN.0);
-        let speed_err = est.omega.saturating_sub(self.omega).saturating_abs();
+        let angle_ok = delta.0.unsigned_abs() <= (Angle::HALF_PI.0 + HANDOVER_MARGIN.0) as u32;
         let tolerance = crate::num::pu_from_f64(HANDOVER_SPEED_TOLERANCE);
-        let speed_ok = speed_err <= crate::num::mul(tolerance, self.omega.saturating_abs());
+        let forward_speed = if self.reverse {
+            est.omega.saturating_neg()
+        } else {
+            est.omega
+        };
+        let speed_ok = forward_speed >= crate::num::mul(tolerance, self.omega.saturating_abs());
         if !(angle_ok && speed_ok) {
             return Err(Fault::Handover(delta, est.omega));
         }
-        let iq = if self.reverse {
-            c.open_loop.current.saturating_neg()
+        // The current (I, 0) at θ_ol seen from the rotor at θ_ol + δ: q component I sin(−δ),
+        // signed with the direction.
+        let iq = mul_unit(c.open_loop.current, (-delta).sin_cos().sin);
+        Ok(if self.reverse {
+            iq.saturating_neg()
         } else {
-            c.open_loop.current
-        };
-        Ok(mul_unit(iq, delta.sin_cos().cos))
+            iq
+        })
     }
 }

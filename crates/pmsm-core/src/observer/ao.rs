@@ -36,6 +36,8 @@ pub struct AoConfig {
     inv_psi: Gain,
     psi_pu: Pu,
     min_emf: Pu,
+    /// EMF below which the direction may flip (`FLIP_SPEED_PU` of the base speed).
+    flip_emf: Pu,
     /// Observer gain `g`, rad/s.
     pub gain_rad_s: f64,
 }
@@ -52,6 +54,9 @@ impl AoConfig {
             inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
             psi_pu: crate::num::pu_from_f64(motor.flux_wb / base.flux_wb),
             min_emf: crate::num::pu_from_f64(super::nlo::MIN_EMF_PU),
+            flip_emf: crate::num::pu_from_f64(
+                super::direction::FLIP_SPEED_PU * motor.flux_wb / base.flux_wb,
+            ),
             direction: Direction::new(base.sample_s, base.omega_e_rad_s),
             gain_rad_s,
         })
@@ -125,9 +130,11 @@ impl Estimator for Ao {
             self.emf = approach(self.emf, measured, self.config.kappa);
         }
         let p = polar(self.emf.alpha, self.emf.beta);
-        let forward = self
-            .direction
-            .update(p.angle, p.magnitude > self.config.min_emf);
+        let forward = self.direction.update(
+            p.angle,
+            p.magnitude > self.config.min_emf,
+            p.magnitude < self.config.flip_emf,
+        );
         let speed = self.config.inv_psi.apply(p.magnitude);
         self.last = Estimate {
             theta: rotor_angle_from_emf(p.angle, forward),

@@ -7,6 +7,9 @@
 //! not toggle it. Through a reversal the EMF shrinks to zero and reappears turned by half a
 //! turn: a step larger than a quarter turn is that flip, not a rotation, and is ignored. The
 //! angle of a vector too small to have one (at start-up, at standstill) is not used at all.
+//! And since a real reversal passes through zero speed, the direction may only flip while the
+//! EMF is small, below [`FLIP_SPEED_PU`] of the base speed: a burst of angle noise at speed
+//! cannot turn the estimate half a turn.
 
 use crate::angle::Angle;
 use crate::num::sat_i32;
@@ -15,6 +18,9 @@ use crate::num::sat_i32;
 pub const TIME_CONSTANT_S: f64 = 2e-3;
 /// Speed, as a fraction of the base speed, that the mean step must exceed to flip.
 pub const THRESHOLD_PU: f64 = 0.002;
+/// Largest speed (fraction of the base speed, judged from the EMF) at which the direction may
+/// flip.
+pub const FLIP_SPEED_PU: f64 = 0.02;
 
 /// Fractional bits of the filtered step (kept in `i64` to average sub-LSB steps).
 const FRAC: u32 = 16;
@@ -45,9 +51,10 @@ impl Direction {
         }
     }
 
-    /// Feeds the angle of the EMF vector at this sample, and whether the vector is large enough
-    /// for its angle to mean anything; returns `true` when turning forwards.
-    pub fn update(&mut self, phi: Angle, valid: bool) -> bool {
+    /// Feeds the angle of the EMF vector at this sample, whether the vector is large enough
+    /// for its angle to mean anything, and whether it is small enough for the rotor to be
+    /// reversing ([`FLIP_SPEED_PU`]); returns `true` when turning forwards.
+    pub fn update(&mut self, phi: Angle, valid: bool, slow: bool) -> bool {
         if !valid {
             self.previous = None;
             return self.forward;
@@ -59,9 +66,9 @@ impl Direction {
                 self.mean_step += (target - self.mean_step) >> self.shift;
             }
         }
-        if self.forward && self.mean_step < -self.threshold {
+        if slow && self.forward && self.mean_step < -self.threshold {
             self.forward = false;
-        } else if !self.forward && self.mean_step > self.threshold {
+        } else if slow && !self.forward && self.mean_step > self.threshold {
             self.forward = true;
         }
         self.forward

@@ -60,6 +60,8 @@ pub struct NloConfig {
     /// `T_s B / J`.
     friction: Gain,
     min_emf: Pu,
+    /// EMF below which the direction may flip (`FLIP_SPEED_PU` of the base speed).
+    flip_emf: Pu,
     /// Observer gain `g`, rad/s.
     pub gain_rad_s: f64,
 }
@@ -84,6 +86,9 @@ impl NloConfig {
             accel: gain("j_kg_m2", accel)?,
             friction: gain("b_nm_s", ts * motor.b_nm_s / motor.j_kg_m2)?,
             min_emf: pu_from_f64(MIN_EMF_PU),
+            flip_emf: crate::num::pu_from_f64(
+                super::direction::FLIP_SPEED_PU * motor.flux_wb / base.flux_wb,
+            ),
             gain_rad_s,
         })
     }
@@ -172,9 +177,11 @@ impl Estimator for Nlo {
         if p.magnitude > c.min_emf {
             self.emf_dir = p.angle.sin_cos();
         }
-        let forward = self
-            .direction
-            .update(p.angle, p.magnitude > self.config.min_emf);
+        let forward = self.direction.update(
+            p.angle,
+            p.magnitude > self.config.min_emf,
+            p.magnitude < self.config.flip_emf,
+        );
         let speed = c.inv_psi.apply(p.magnitude);
         self.last = Estimate {
             theta: rotor_angle_from_emf(p.angle, forward),
