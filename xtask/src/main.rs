@@ -9,6 +9,7 @@ mod accuracy;
 mod examples;
 mod plant_speed;
 mod seed000;
+mod seed001;
 
 use anyhow::{Result, bail};
 use std::path::PathBuf;
@@ -25,7 +26,11 @@ fn main() -> Result<()> {
         "figures" => {
             let dir = root().join("docs/figures");
             seed000::figures(&dir)?;
-            eprintln!("wrote the figures of seed 000 to {}", dir.display());
+            seed001::figures(&dir)?;
+            eprintln!(
+                "wrote the figures of seeds 000 and 001 to {}",
+                dir.display()
+            );
             Ok(())
         }
         _ => bail!("usage: cargo xtask perf | figures | examples"),
@@ -43,6 +48,8 @@ fn perf() -> Result<()> {
     doc.push_str(&accuracy::section());
     eprintln!("running the seed-000 estimators ...");
     doc.push_str(&seed000::section());
+    eprintln!("running the seed-001 drive ...");
+    doc.push_str(&seed001::section()?);
     eprintln!("measuring the speed of the plant model ...");
     doc.push_str(&plant_speed::section()?);
     let path = root().join("docs/PERFORMANCE.md");

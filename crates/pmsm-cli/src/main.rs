@@ -1,5 +1,6 @@
 //! `pmsm`: the host tool of the sensorless PMSM drive library.
 
+use clap::error::ErrorKind;
 use clap::{Parser, Subcommand};
 use pmsm_cli::commands;
 use std::process::ExitCode;
@@ -23,14 +24,33 @@ enum Command {
     Observe(commands::observe::Args),
     /// Run the fixed-point sensorless drive against the plant on a scenario file.
     Simulate(commands::simulate::Args),
+    /// Detect the initial rotor position against the plant, at one angle or a sweep.
+    Ipd(commands::ipd::Args),
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => {
+            e.exit()
+        }
+        Err(e) => {
+            // One line, like every other error of `pmsm`; `--help` has the rest.
+            let text = e.render().to_string();
+            let message: Vec<&str> = text
+                .lines()
+                .map(str::trim)
+                .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
+                .collect();
+            eprintln!("{} (see `pmsm --help`)", message.join(" "));
+            return ExitCode::from(2);
+        }
+    };
     let result = match cli.command {
         Command::Plant(args) => commands::plant::run(&args),
         Command::Observe(args) => commands::observe::run(&args),
         Command::Simulate(args) => commands::simulate::run(&args),
+        Command::Ipd(args) => commands::ipd::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

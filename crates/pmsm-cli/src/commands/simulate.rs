@@ -436,7 +436,8 @@ fn write_csv(path: &std::path::Path, rows: &[Row]) -> Result<()> {
     w.flush().map_err(err)
 }
 
-fn draw(path: &std::path::Path, sc: &Scenario, rows: &[Row]) -> Result<()> {
+/// Draws speed, angle error and dq currents of a run to an SVG file.
+pub fn draw(path: &std::path::Path, sc: &Scenario, rows: &[Row]) -> Result<()> {
     let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
     let col = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
     let (sref, s, sest) = (
