@@ -51,7 +51,7 @@ fn run(rpm: f64, iq_a: f64, err0_deg: f64, secs: f64, tail_s: f64) -> Errors {
 
     let gains = MrasCurrentGains::default_for(&m, &base);
     let mut fixed = MrasCurrent::new(MrasCurrentConfig::new(&m, &base, gains).unwrap());
-    let mut reference = MrasRef::new(&m, ts, gains.kp, gains.ki);
+    let mut reference = MrasRef::with_load(&m, ts, gains.kp, gains.ki, gains.kl);
     let th_hat0 = theta0 - err0_deg.to_radians();
     fixed.reset(Angle::from_rad(th_hat0), base.speed_pu(w));
     reference.reset(th_hat0, w);

@@ -63,11 +63,24 @@ pub struct MrasRef {
     pub xi: f64,
     /// The next update seeds the model with the measured current (after a reset).
     pub seed: bool,
+    /// Mechanical model `a = p K_T/J` (rad/s² per A) and `B/J` (1/s).
+    pub accel: f64,
+    /// See `accel`.
+    pub friction: f64,
+    /// Gain `K_L` of the load-current estimate, A/(A²·s); zero: no mechanical model.
+    pub kl: f64,
+    /// Load-current estimate, A.
+    pub i_load: f64,
 }
 
 impl MrasRef {
     /// Estimator for `m` sampled every `ts` with gains `kp`, `ki`.
     pub fn new(m: &MotorParams, ts: f64, kp: f64, ki: f64) -> Self {
+        Self::with_load(m, ts, kp, ki, 0.0)
+    }
+
+    /// With the mechanical model and load-estimate gain `kl` (zero: none).
+    pub fn with_load(m: &MotorParams, ts: f64, kp: f64, ki: f64, kl: f64) -> Self {
         Self {
             r: m.rs_ohm,
             ld: m.ld_h,
@@ -82,6 +95,10 @@ impl MrasRef {
             integ: 0.0,
             xi: 0.0,
             seed: true,
+            accel: m.p() * m.kt_nm_per_a / m.j_kg_m2,
+            friction: m.b_nm_s / m.j_kg_m2,
+            kl,
+            i_load: 0.0,
         }
     }
 
@@ -92,6 +109,7 @@ impl MrasRef {
         self.integ = omega;
         self.i_hat = [0.0; 2];
         self.xi = 0.0;
+        self.i_load = 0.0;
         self.seed = true;
     }
 
@@ -132,6 +150,11 @@ impl MrasRef {
             - (self.ld / self.lq) * i[0] * eq
             - (self.psi / self.lq) * eq;
         self.xi = xi;
+        if self.kl > 0.0 {
+            self.i_load -= self.ts * self.kl * xi;
+            self.integ +=
+                self.ts * (self.accel * (i[1] - self.i_load) - self.friction * self.omega);
+        }
         self.integ += self.ki * self.ts * xi;
         self.omega = self.integ + self.kp * xi;
         (self.theta, self.omega)

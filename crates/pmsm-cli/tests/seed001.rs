@@ -128,6 +128,31 @@ fn item3_reversal_under_load() {
     assert!(id < 0.18, "mean |i_d| {id} A");
 }
 
+/// A reversal through zero under a load that does not reverse with the speed (a hoist): the
+/// machine brakes as a generator after the zero crossing. The current-model MRAS keeps its lock
+/// through zero thanks to its mechanical model.
+#[test]
+fn reversal_through_zero_under_a_constant_load() {
+    let sc = scenario(
+        "b-reversal-load.toml",
+        &[(
+            "nm = [0.0, 0.0, 4.0, 4.0, -4.0, -4.0, -4.0]",
+            "nm = [0.0, 0.0, 4.0, 4.0, 4.0, 4.0, 4.0]",
+        )],
+    );
+    let run = run_scenario(&sc).unwrap();
+    no_fault(&run);
+    let after = max_angle(&rows_between(&run, 0.3, 5.0));
+    let steady = rows_between(&run, 4.3, 5.0);
+    println!(
+        "reversal under a constant 4 N·m: max angle error {after:.3} rad, steady rms {:.4} rad, speed {:.3} %",
+        rms_angle(&steady),
+        100.0 * speed_err(&steady)
+    );
+    assert!(after <= 0.5);
+    assert!(rms_angle(&steady) <= 0.08 && speed_err(&steady) <= 0.02);
+}
+
 /// The IP speed loop (seed 001 §7): a speed step overshoots by at most 2 %, i_d held at 0.
 /// Under half the rated load: at no load the phase currents hover near zero, where the
 /// residue of the dead-time compensation jitters the estimate by a few r/min, which would be

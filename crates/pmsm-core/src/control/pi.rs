@@ -159,6 +159,12 @@ impl Pi {
         self.integ = pu_to_wide(integral);
     }
 
+    /// Adds `delta` (Q16.48, as [`WideGain::apply_wide`] returns) to the integral state: a
+    /// feed-forward into the integrator, saturating.
+    pub fn add_to_integral(&mut self, delta: i64) {
+        self.integ = self.integ.saturating_add(delta);
+    }
+
     /// The integral state, rounded to [`Pu`].
     pub fn integral(&self) -> Pu {
         wide_to_pu(self.integ)

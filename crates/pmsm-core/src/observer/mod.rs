@@ -201,5 +201,6 @@ pub fn default_observer_gain(
     let rated_e = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
         n * core::f64::consts::TAU / 60.0 * motor.p()
     });
-    (3.0 * rated_e).clamp(100.0, 0.25 / base.sample_s)
+    // max/min, not clamp: clamp has a panic path (min > max) the firmware would link.
+    (3.0 * rated_e).max(100.0).min(0.25 / base.sample_s)
 }

@@ -62,6 +62,20 @@
 //! steady state is still zero with exact parameters. Accepted range:
 //! `K_p ∈ [0, 1/(k_∞ T_s)]`, `K_i ∈ [0, 0.25/(k_∞ T_s²)]`.
 //!
+//! # Through zero speed
+//!
+//! Near standstill ξ carries almost no information on the position (the EMF error vanishes
+//! with ω), and a speed that changes sign under load drags the estimate away. The mechanical
+//! model knows how the speed changes: the measured torque current accelerates the rotor by
+//! `a (i_q − i_L) − (B/J) ω̂`, `a = p K_T/J` (equations.md §1), where `i_L` is the load seen as
+//! a current. Every sample that acceleration is added to the speed integrator, and the load
+//! estimate follows `dî_L/dt = −K_L ξ` (a rotor ahead of the estimate means less load than
+//! assumed). Linearised, `ξ ≈ k δ`, the position error obeys
+//! `δ‴ + K_p k δ″ + K_i k δ′ + a K_L k δ = 0`; [`MrasCurrentGains::design`] places its poles.
+//! Through zero speed `k → 0`: the loop opens, and the model carries the estimate with the load
+//! learned before, so a reversal under a load that does not reverse with it keeps its lock.
+//! `K_L = 0` gives the plain MRAS of seed 001.
+//!
 //! # Formats
 //!
 //! | signal | format | note |
@@ -89,13 +103,17 @@ pub const DEFAULT_BANDWIDTH_TS: f64 = 0.02;
 pub const MAX_SPEED_PU: f64 = 4.0;
 
 /// Adaptation gains of eq. 22 in SI units (ξ in A²): `K_p` in (rad/s)/A², `K_i` in
-/// (rad/s²)/A², electrical speed.
+/// (rad/s²)/A², electrical speed; and the gain of the load-current estimate of the mechanical
+/// model (module docs, "Through zero speed").
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MrasCurrentGains {
     /// Proportional gain `K_pω_r-est`.
     pub kp: f64,
     /// Integral gain `K_iω_r-est`.
     pub ki: f64,
+    /// Gain `K_L` of the load-current estimate, A/(A²·s); zero turns the mechanical model off
+    /// (the plain MRAS of seed 001).
+    pub kl: f64,
 }
 
 impl MrasCurrentGains {
@@ -105,12 +123,29 @@ impl MrasCurrentGains {
         r * r
     }
 
-    /// Critically damped design for natural frequency `bandwidth_rad_s` (module docs).
+    /// Design for natural frequency `ω_n = bandwidth_rad_s` (module docs): a critically damped
+    /// pair at `ω_n` and the load estimate's pole at `ω_L = ω_n/4`,
+    /// `(s² + 2ω_n s + ω_n²)(s + ω_L)`, with `a = p K_T/J`:
+    /// `K_p = (2ω_n + ω_L)/k_∞`, `K_i = (ω_n² + 2ω_n ω_L)/k_∞`, `K_L = ω_n² ω_L/(a k_∞)`.
     pub fn design(motor: &MotorParams, bandwidth_rad_s: f64) -> Self {
+        let k = Self::k_inf(motor);
+        let (wn, wl) = (bandwidth_rad_s, 0.25 * bandwidth_rad_s);
+        let a = motor.p() * motor.kt_nm_per_a / motor.j_kg_m2;
+        Self {
+            kp: (2.0 * wn + wl) / k,
+            ki: (wn * wn + 2.0 * wn * wl) / k,
+            kl: wn * wn * wl / (a * k),
+        }
+    }
+
+    /// The plain MRAS of seed 001, critically damped at `bandwidth_rad_s`, without the
+    /// mechanical model: `K_p = 2ω_n/k_∞`, `K_i = ω_n²/k_∞`, `K_L = 0`.
+    pub fn design_plain(motor: &MotorParams, bandwidth_rad_s: f64) -> Self {
         let k = Self::k_inf(motor);
         Self {
             kp: 2.0 * bandwidth_rad_s / k,
             ki: bandwidth_rad_s * bandwidth_rad_s / k,
+            kl: 0.0,
         }
     }
 
@@ -146,6 +181,12 @@ pub struct MrasCurrentConfig {
     pi: PiConfig,
     /// Speed clamp, per unit.
     omega_max: Pu,
+    /// Mechanical model: speed change per sample per unit of torque current,
+    /// `T_s p K_T I_b/(J ω_b)`, and per unit of speed, `T_s B/J` (both zero when off).
+    accel: WideGain,
+    friction: WideGain,
+    /// Load-current estimate change per sample per unit of ξ', `T_s K_L I_b ψ/L_q` (per unit).
+    load_gain: WideGain,
     /// Gains it was built with.
     pub gains: MrasCurrentGains,
 }
@@ -166,6 +207,14 @@ impl MrasCurrentConfig {
         let k_inf = MrasCurrentGains::k_inf(motor);
         gain_in("mras_current.kp", gains.kp, 0.0, 1.0 / (k_inf * ts))?;
         gain_in("mras_current.ki", gains.ki, 0.0, 0.25 / (k_inf * ts * ts))?;
+        let a = motor.p() * motor.kt_nm_per_a / motor.j_kg_m2;
+        gain_in(
+            "mras_current.kl",
+            gains.kl,
+            0.0,
+            0.1 / (a * k_inf * ts * ts * ts),
+        )?;
+        let mech = gains.kl > 0.0;
         let (r, ld, lq, psi) = (
             motor.rs_ohm / base.impedance_ohm,
             motor.ld_h / base.inductance_h,
@@ -200,6 +249,24 @@ impl MrasCurrentConfig {
                 ["mras_current.kp", "mras_current.ki"],
             )?,
             omega_max: pu_from_f64(omega_max),
+            accel: c(
+                "j_kg_m2",
+                if mech {
+                    ts * motor.p() * motor.kt_nm_per_a * base.current_a
+                        / (motor.j_kg_m2 * base.omega_e_rad_s)
+                } else {
+                    0.0
+                },
+            )?,
+            friction: c(
+                "b_nm_s",
+                if mech {
+                    ts * motor.b_nm_s / motor.j_kg_m2
+                } else {
+                    0.0
+                },
+            )?,
+            load_gain: c("mras_current.kl", ts * gains.kl * base.current_a * psi / lq)?,
             gains,
         })
     }
@@ -218,6 +285,8 @@ pub struct MrasCurrent {
     pi: Pi,
     /// Adaptation signal ξ' of the last update.
     xi: Pu,
+    /// Load-current estimate of the mechanical model, per unit of `I_b`.
+    i_load: Pu,
     /// The next update seeds the model with the measured current (after a reset).
     seed: bool,
     last: Estimate,
@@ -233,6 +302,7 @@ impl MrasCurrent {
             theta: 0,
             sc: Angle::ZERO.sin_cos(),
             xi: Pu::ZERO,
+            i_load: Pu::ZERO,
             seed: true,
             last: Estimate::default(),
         };
@@ -335,6 +405,15 @@ impl Estimator for MrasCurrent {
             .apply(mul(i.q, e_d))
             .saturating_sub(c.w_dq.apply(mul(i.d, e_q)))
             .saturating_sub(e_q);
+        // Mechanical model: the torque current less the load estimate accelerates the rotor;
+        // the load estimate moves against ξ (module docs, "Through zero speed").
+        self.i_load = self.i_load.saturating_sub(c.load_gain.apply(self.xi));
+        let torque = i.q.saturating_sub(self.i_load);
+        let ff = c
+            .accel
+            .apply_wide(torque)
+            .saturating_sub(c.friction.apply_wide(omega));
+        self.pi.add_to_integral(ff);
         let out = self
             .pi
             .step(self.xi, Pu::ZERO, Limits::symmetric(c.omega_max), false);
@@ -353,6 +432,7 @@ impl Estimator for MrasCurrent {
         self.pi.reset(omega);
         self.i_hat = Dq::default();
         self.xi = Pu::ZERO;
+        self.i_load = Pu::ZERO;
         self.seed = true;
         self.last = self.make_estimate(omega);
     }
