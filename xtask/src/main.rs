@@ -7,6 +7,7 @@
 
 mod accuracy;
 mod examples;
+mod pil;
 mod plant_speed;
 mod seed000;
 mod seed001;
@@ -50,6 +51,8 @@ fn perf() -> Result<()> {
     doc.push_str(&seed000::section());
     eprintln!("running the seed-001 drive ...");
     doc.push_str(&seed001::section()?);
+    eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
+    doc.push_str(&pil::section());
     eprintln!("measuring the speed of the plant model ...");
     doc.push_str(&plant_speed::section()?);
     let path = root().join("docs/PERFORMANCE.md");

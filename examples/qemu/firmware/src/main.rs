@@ -1,0 +1,174 @@
+//! Processor-in-the-loop firmware: runs pmsm-core on an emulated Cortex-M4 (`mps2-an386`) or
+//! Cortex-M0 (`microbit`) in `qemu-system-arm -icount shift=8`, and prints, through
+//! semihosting:
+//!
+//! ```text
+//! PIL <cpu> calibration ticks_per_insn=<x> overhead_insn=<n> exact=true
+//! PIL <cpu> <component> insn_mean=<n> insn_max=<n>        (one line per component)
+//! PIL <cpu> replay bit_exact=true steps=<n>
+//! ```
+//!
+//! then exits QEMU with status 0 if the calibration is exact and the replay bit-exact, 1
+//! otherwise. Lines starting with `#` are information. See `examples/qemu/README.md`.
+#![no_std]
+#![no_main]
+
+mod bench;
+mod meter;
+mod replay;
+mod stack;
+
+use cortex_m_rt::{ExceptionFrame, entry, exception};
+use cortex_m_semihosting::{debug, hprintln};
+use pmsm_pil::setup::Setup;
+
+use crate::replay::{Invalid, Outcome};
+
+/// `cortex-m4` or `cortex-m0` (from the target, see `build.rs`).
+const CPU: &str = env!("PIL_CPU");
+
+/// Configuration errors are not printed on the target: their messages format `f64`, which
+/// would link 25 KiB of float formatting into the micro:bit's 256 KiB. The host recorder
+/// builds the same configurations and prints the message.
+const NO_FLOAT_FMT: &str = "run pil-record on the host for the message";
+
+#[entry]
+fn main() -> ! {
+    let ok = run();
+    let (peak, size) = stack::peak();
+    hprintln!("# {CPU} stack: peak {peak} of {size} bytes");
+    exit(ok)
+}
+
+fn run() -> bool {
+    let Some(p) = cortex_m::Peripherals::take() else {
+        hprintln!("# {CPU}: peripherals already taken");
+        return false;
+    };
+    meter::start(p.SYST);
+    let meter = match meter::Meter::calibrate() {
+        Ok(m) => m,
+        Err(e) => {
+            hprintln!("PIL {CPU} calibration exact=false");
+            hprintln!("# {CPU} calibration failed: {e}");
+            return false;
+        }
+    };
+    let k = meter.ticks_per_insn_e6();
+    hprintln!(
+        "PIL {CPU} calibration ticks_per_insn={}.{:06} overhead_insn={} exact=true",
+        k / 1_000_000,
+        k % 1_000_000,
+        meter.overhead
+    );
+    hprintln!(
+        "# {CPU} calibration: {} ticks over {} instructions; nop blocks of 1..1000 measure exactly",
+        meter.ref_ticks,
+        meter.ref_insn
+    );
+    memory_report();
+
+    let setup = match Setup::motor_a() {
+        Ok(s) => s,
+        Err(_) => {
+            hprintln!("# {CPU}: motor A set-up failed ({NO_FLOAT_FMT})");
+            return false;
+        }
+    };
+
+    let benches = bench::run_all(&meter, &setup, &mut |name, st| {
+        hprintln!(
+            "PIL {CPU} {name} insn_mean={} insn_max={}",
+            st.mean(),
+            st.max
+        );
+    });
+    if benches.is_err() {
+        hprintln!("# {CPU}: a benchmark configuration failed ({NO_FLOAT_FMT})");
+        return false;
+    }
+
+    let outcome = replay::run(&setup, &mut |name, steps| {
+        hprintln!("# {CPU} replay {name}: {steps} steps bit-exact");
+    });
+    match outcome {
+        Outcome::Exact { steps, cases } => {
+            hprintln!("PIL {CPU} replay bit_exact=true steps={steps}");
+            cases > 0
+        }
+        Outcome::Mismatch { steps, at } => {
+            hprintln!(
+                "PIL {CPU} replay bit_exact=false steps={steps} case={} step={} output={} target={} host={}",
+                at.case,
+                at.step,
+                at.output,
+                at.target,
+                at.host
+            );
+            false
+        }
+        Outcome::Invalid { steps, reason } => {
+            hprintln!("PIL {CPU} replay bit_exact=false steps={steps}");
+            match reason {
+                Invalid::Format(e) => hprintln!("# {CPU} replay: recording: {e}"),
+                Invalid::Empty => hprintln!("# {CPU} replay: the recording has no cases"),
+                Invalid::UnknownCase(c) => hprintln!("# {CPU} replay: unknown case {c}"),
+                Invalid::Shape(c) => hprintln!("# {CPU} replay: case {c}: word counts differ"),
+                Invalid::Config(c) => hprintln!("# {CPU} replay: case {c}: configuration failed"),
+                Invalid::Short(c) => hprintln!("# {CPU} replay: case {c}: ran short"),
+            }
+            false
+        }
+    }
+}
+
+/// Flash and RAM used by this image (from the linker symbols of cortex-m-rt).
+fn memory_report() {
+    unsafe extern "C" {
+        static __sidata: u8;
+        static __sdata: u8;
+        static __edata: u8;
+        static __ebss: u8;
+    }
+    let addr = |s: &u8| s as *const u8 as usize;
+    // SAFETY: only the addresses of the linker symbols are taken.
+    let (sidata, sdata, edata, ebss) = unsafe {
+        (
+            addr(&__sidata),
+            addr(&__sdata),
+            addr(&__edata),
+            addr(&__ebss),
+        )
+    };
+    let flash = sidata + (edata - sdata); // FLASH starts at 0 on both machines
+    hprintln!(
+        "# {CPU} image: flash {} bytes (recording {}), static RAM {} bytes",
+        flash,
+        replay::recording_len(),
+        ebss - sdata
+    );
+}
+
+fn exit(ok: bool) -> ! {
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    // Not reached under QEMU; on a board without a debugger, stop here.
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("# {CPU} panic: {info}");
+    exit(false)
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    hprintln!("# {CPU} hard fault at pc={:#010x}", ef.pc());
+    exit(false)
+}

@@ -1,0 +1,280 @@
+//! `pil-record [--output PATH] [--steps N]`: runs every replay case of `pmsm_pil::cases` on the
+//! host on its scenario and writes the input and output words of each step to PATH (default
+//! `examples/qemu/target/pil/recording.bin`), which the firmware embeds (`PIL_RECORDING`).
+//!
+//! Scenario of the estimator cases: motor A (seed 000) turning at 120 rad/s mechanical, then
+//! slowing to 115 rad/s with a raised-cosine profile (a torque-consistent prescribed trajectory,
+//! `i_d = 0`, as `tests/support/trajectory.rs`), sampled at 20 kHz with ADC-like noise on the
+//! currents and voltages; the estimators start from zero state, so the recording covers their
+//! convergence and tracking.
+
+use std::f64::consts::PI;
+use std::path::Path;
+use std::process::ExitCode;
+
+use pmsm_core::observer::ObserverInput;
+use pmsm_core::{AlphaBeta, PerUnit};
+use pmsm_pil::cases::{self, CASES, Io, Shape};
+use pmsm_pil::format;
+use pmsm_pil::setup::{SAMPLE_HZ, Setup};
+
+/// Default number of steps per case (0.1 s at 20 kHz). The micro:bit's 256 KiB of flash
+/// holds the firmware and about 5000 steps of 8 words.
+const DEFAULT_STEPS: usize = 2000;
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("pil-record: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<(), String> {
+    // examples/qemu/target/pil/recording.bin, where the firmware's build.rs looks by default.
+    let workspace = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap_or(Path::new(".."));
+    let mut output = workspace.join("target/pil/recording.bin");
+    let mut steps = DEFAULT_STEPS;
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "--output" => output = args.next().ok_or("--output needs a path")?.into(),
+            "--steps" => {
+                steps = args
+                    .next()
+                    .and_then(|s| s.parse().ok())
+                    .filter(|&n| n > 0)
+                    .ok_or("--steps needs a positive integer")?
+            }
+            _ => {
+                return Err(format!(
+                    "unknown argument {arg:?} (usage: pil-record [--output PATH] [--steps N])"
+                ));
+            }
+        }
+    }
+    let setup = Setup::motor_a().map_err(|e| format!("motor A set-up: {e}"))?;
+    let mut bytes = format::file_header(CASES.len() as u32).to_vec();
+    for shape in CASES {
+        let mut io = scenario(shape, &setup, steps)?;
+        let ran = cases::run_named(shape.name, &setup, &mut io)
+            .ok_or_else(|| format!("case {} is in CASES but not in run_named", shape.name))?
+            .map_err(|e| format!("case {}: {e}", shape.name))?;
+        if ran != steps || io.words.len() != steps * (shape.inputs + shape.outputs) {
+            return Err(format!("case {}: ran {ran} of {steps} steps", shape.name));
+        }
+        let header = format::case_header(shape.name, shape.inputs, shape.outputs, steps)
+            .map_err(|e| format!("case {}: {e}", shape.name))?;
+        bytes.extend_from_slice(&header);
+        bytes.extend(io.words.iter().flat_map(|w| w.to_le_bytes()));
+        eprintln!(
+            "pil-record: {:<10} {steps} steps, {}",
+            shape.name,
+            io.summary(&setup)
+        );
+    }
+    // The firmware's parser must accept what we write.
+    format::Recording::parse(&bytes).map_err(|e| format!("own recording: {e}"))?;
+    // An unchanged recording keeps its time stamp, so the firmware is not rebuilt.
+    if std::fs::read(&output).is_ok_and(|old| old == bytes) {
+        eprintln!(
+            "pil-record: {} unchanged ({} bytes)",
+            output.display(),
+            bytes.len()
+        );
+        return Ok(());
+    }
+    if let Some(dir) = output.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    std::fs::write(&output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
+    eprintln!(
+        "pil-record: wrote {} ({} bytes, {} cases)",
+        output.display(),
+        bytes.len(),
+        CASES.len()
+    );
+    Ok(())
+}
+
+/// The scenario of a case: where its inputs come from.
+fn scenario(shape: &Shape, setup: &Setup, steps: usize) -> Result<Recorder, String> {
+    match shape.name {
+        "nlo" | "ao" => Ok(Recorder::open_loop(shape, estimator_inputs(setup, steps))),
+        // The drive: a closed loop with pmsm-plant, whose `Io::input` reads the plant and
+        // whose `Io::output` applies the duties.
+        other => Err(format!(
+            "no scenario for case {other}: add one in host/src/main.rs"
+        )),
+    }
+}
+
+/// Records every step's words; inputs from a precomputed list (open loop).
+struct Recorder {
+    inputs: Vec<Vec<i32>>,
+    words: Vec<i32>,
+    /// Truth per step for the summary: electrical angle (rad), speed (rad/s).
+    truth: Vec<(f64, f64)>,
+    outputs: usize,
+}
+
+impl Recorder {
+    fn open_loop(shape: &Shape, inputs: Vec<(ObserverInput, (f64, f64))>) -> Self {
+        let (inputs, truth) = inputs
+            .into_iter()
+            .map(|(x, t)| {
+                let mut w = vec![0; shape.inputs];
+                cases::observer_input_words(&x, &mut w);
+                (w, t)
+            })
+            .unzip();
+        Self {
+            inputs,
+            words: Vec::new(),
+            truth,
+            outputs: shape.outputs,
+        }
+    }
+
+    /// Angle and speed error of the last estimate (estimator cases).
+    fn summary(&self, setup: &Setup) -> String {
+        let n = self.inputs.first().map_or(0, Vec::len) + self.outputs;
+        let (Some(last), Some(&(theta, omega))) = (self.words.rchunks(n).next(), self.truth.last())
+        else {
+            return String::new();
+        };
+        let e = cases::estimate_of(&last[n - self.outputs..]);
+        let d = e.theta.to_rad() - theta;
+        let d = (d + PI).rem_euclid(2.0 * PI) - PI;
+        format!(
+            "last step: angle error {:+.3}°, speed error {:+.3} rad/s electrical",
+            d.to_degrees(),
+            setup.base.speed_rad_s(e.omega) - omega
+        )
+    }
+}
+
+impl Io for Recorder {
+    fn input(&mut self, step: usize, input: &mut [i32]) -> bool {
+        match self.inputs.get(step) {
+            Some(w) => {
+                input.copy_from_slice(w);
+                self.words.extend_from_slice(w);
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn output(&mut self, _step: usize, output: &[i32]) -> bool {
+        self.words.extend_from_slice(output);
+        true
+    }
+}
+
+/// Mechanical speed profile: 120 rad/s, then a raised-cosine ramp to 115 rad/s over
+/// [40 ms, 100 ms] (peak torque about 5 N·m, under rated). Returns `(ω_m, ω̇_m, ω̈_m)`.
+fn profile(t: f64) -> (f64, f64, f64) {
+    const W0: f64 = 120.0;
+    const W1: f64 = 115.0;
+    const T0: f64 = 0.04;
+    const T1: f64 = 0.1;
+    if t <= T0 {
+        (W0, 0.0, 0.0)
+    } else if t >= T1 {
+        (W1, 0.0, 0.0)
+    } else {
+        let d = T1 - T0;
+        let x = PI * (t - T0) / d;
+        let a = 0.5 * (W1 - W0);
+        (
+            W0 + a * (1.0 - x.cos()),
+            a * x.sin() * PI / d,
+            a * x.cos() * (PI / d).powi(2),
+        )
+    }
+}
+
+/// `∫₀ᵗ ω_m dt` of [`profile`] (exact).
+fn angle_m(t: f64) -> f64 {
+    const W0: f64 = 120.0;
+    const W1: f64 = 115.0;
+    const T0: f64 = 0.04;
+    const T1: f64 = 0.1;
+    let d = T1 - T0;
+    let a = 0.5 * (W1 - W0);
+    let tau = (t.min(T1) - T0).max(0.0);
+    W0 * t.min(T0) + W0 * tau + a * (tau - d / PI * (PI * tau / d).sin()) + W1 * (t - T1).max(0.0)
+}
+
+/// SplitMix64: deterministic noise.
+struct SplitMix(u64);
+
+impl SplitMix {
+    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        lo + (hi - lo) * (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Per-unit estimator inputs of the trajectory with the truth `(θ_e, ω_e)` of each sample.
+/// The voltage of sample k is the mean over `[t_{k−1}, t_k]` (trapezoid), as `pmsm observe`
+/// and the seed-000 tests feed it.
+fn estimator_inputs(setup: &Setup, steps: usize) -> Vec<(ObserverInput, (f64, f64))> {
+    let m = &setup.motor;
+    let base: &PerUnit = &setup.base;
+    let p = m.p();
+    let theta0 = 0.3;
+    let sample = |t: f64| {
+        let (w, dw, ddw) = profile(t);
+        let th = theta0 + p * angle_m(t);
+        let we = p * w;
+        let iq = (m.j_kg_m2 * dw + m.b_nm_s * w) / m.kt_nm_per_a;
+        let diq = (m.j_kg_m2 * ddw + m.b_nm_s * dw) / m.kt_nm_per_a;
+        let (s, c) = th.sin_cos();
+        let i = [-iq * s, iq * c];
+        let di = [-diq * s - iq * we * c, diq * c - iq * we * s];
+        let e = [-m.flux_wb * we * s, m.flux_wb * we * c];
+        let v = [
+            m.rs_ohm * i[0] + m.ld_h * di[0] + e[0],
+            m.rs_ohm * i[1] + m.ld_h * di[1] + e[1],
+        ];
+        (i, v, th, we)
+    };
+    let ts = 1.0 / SAMPLE_HZ;
+    let mut noise = SplitMix(0x5eed_0005);
+    let mut prev_v = None;
+    (0..steps)
+        .map(|k| {
+            let (i, v, th, we) = sample(k as f64 * ts);
+            let mean_v = match prev_v.replace(v) {
+                Some(pv) => [0.5 * (pv[0] + v[0]), 0.5 * (pv[1] + v[1])],
+                None => v,
+            };
+            // ±1 LSB of a 12-bit ADC over ±20 A; ±0.3 V on the voltages.
+            let mut ni = || noise.uniform(-0.01, 0.01);
+            let (ia, ib) = (i[0] + ni(), i[1] + ni());
+            let mut nv = || noise.uniform(-0.3, 0.3);
+            let (va, vb) = (mean_v[0] + nv(), mean_v[1] + nv());
+            let input = ObserverInput {
+                i: AlphaBeta {
+                    alpha: base.current_pu(ia),
+                    beta: base.current_pu(ib),
+                },
+                v: AlphaBeta {
+                    alpha: base.voltage_pu(va),
+                    beta: base.voltage_pu(vb),
+                },
+            };
+            (input, (th, we))
+        })
+        .collect()
+}

@@ -1,0 +1,279 @@
+//! The functions the replay checks bit for bit, each seen as a step from a list of `i32`
+//! input words to a list of `i32` output words (the bits of the fixed-point values).
+//!
+//! The host recorder feeds a scenario through [`run_named`] and writes every step's words
+//! ([`crate::format`]); the firmware feeds the recorded inputs through the same
+//! [`run_named`] and compares the outputs. A new case (the drive's `step()`) is a type that
+//! implements [`Case`] plus its name in the [`cases!`] list at the bottom of this file; the
+//! host then records it on a scenario of its own (an open-loop trajectory, or the plant in a
+//! closed loop through [`Io::output`]).
+
+use pmsm_core::observer::{Ao, Estimate, Estimator, Nlo, ObserverInput};
+use pmsm_core::{AlphaBeta, Angle, ConfigError, Pu};
+
+use crate::setup::Setup;
+
+/// Largest number of input or output words of a case.
+pub const MAX_WORDS: usize = 32;
+
+/// A function under test, stepped with input words into output words.
+pub trait Case: Sized {
+    /// Name in recordings and reports (at most 16 ASCII bytes).
+    const NAME: &'static str;
+    /// Input words per step (at most [`MAX_WORDS`]).
+    const INPUTS: usize;
+    /// Output words per step (at most [`MAX_WORDS`]).
+    const OUTPUTS: usize;
+    /// The function's state at step 0, configured from `setup`.
+    fn new(setup: &Setup) -> Result<Self, ConfigError>;
+    /// One step: `input` has [`Case::INPUTS`] words, `output` [`Case::OUTPUTS`] (zeroed).
+    fn step(&mut self, input: &[i32], output: &mut [i32]);
+}
+
+/// Where the inputs of a run come from and its outputs go.
+pub trait Io {
+    /// Fills the inputs of `step`; false when there are no more steps.
+    fn input(&mut self, step: usize, input: &mut [i32]) -> bool;
+    /// Takes the outputs of `step`; false stops the run (after a mismatch, say). A closed
+    /// loop feeds them back into the next inputs.
+    fn output(&mut self, step: usize, output: &[i32]) -> bool;
+}
+
+/// Name and shape of a case.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shape {
+    /// [`Case::NAME`].
+    pub name: &'static str,
+    /// [`Case::INPUTS`].
+    pub inputs: usize,
+    /// [`Case::OUTPUTS`].
+    pub outputs: usize,
+}
+
+/// The shape of case `C`.
+pub const fn shape<C: Case>() -> Shape {
+    Shape {
+        name: C::NAME,
+        inputs: C::INPUTS,
+        outputs: C::OUTPUTS,
+    }
+}
+
+/// Runs case `C` from step 0 until `io` stops it; returns the number of steps run.
+///
+/// Never inlined: each case has a stack frame of its own, used one after the other (a drive's
+/// state is kilobytes; the micro:bit has 16 KiB of RAM).
+#[inline(never)]
+pub fn run<C: Case>(setup: &Setup, io: &mut dyn Io) -> Result<usize, ConfigError> {
+    let mut case = C::new(setup)?;
+    let mut input = [0i32; MAX_WORDS];
+    let mut output = [0i32; MAX_WORDS];
+    let input = &mut input[..C::INPUTS.min(MAX_WORDS)];
+    let output = &mut output[..C::OUTPUTS.min(MAX_WORDS)];
+    let mut step = 0;
+    while io.input(step, input) {
+        output.fill(0);
+        case.step(input, output);
+        step += 1;
+        if !io.output(step - 1, output) {
+            break;
+        }
+    }
+    Ok(step)
+}
+
+/// Word `j` of `w`, or 0.
+#[inline(always)]
+pub fn word(w: &[i32], j: usize) -> i32 {
+    w.get(j).copied().unwrap_or(0)
+}
+
+/// Stores `value` as word `j` of `w` (ignored if out of range).
+#[inline(always)]
+pub fn set_word(w: &mut [i32], j: usize, value: i32) {
+    if let Some(x) = w.get_mut(j) {
+        *x = value;
+    }
+}
+
+/// Estimator input from 4 words: `i_α, i_β, v_α, v_β` (Q8.24 bits).
+pub fn observer_input(w: &[i32]) -> ObserverInput {
+    let pu = |j| Pu::from_bits(word(w, j));
+    ObserverInput {
+        i: AlphaBeta {
+            alpha: pu(0),
+            beta: pu(1),
+        },
+        v: AlphaBeta {
+            alpha: pu(2),
+            beta: pu(3),
+        },
+    }
+}
+
+/// The 4 words of an [`ObserverInput`] (inverse of [`observer_input`]).
+pub fn observer_input_words(x: &ObserverInput, w: &mut [i32]) {
+    set_word(w, 0, x.i.alpha.to_bits());
+    set_word(w, 1, x.i.beta.to_bits());
+    set_word(w, 2, x.v.alpha.to_bits());
+    set_word(w, 3, x.v.beta.to_bits());
+}
+
+/// Estimate as 4 words: `θ` (turn bits), `ω`, `ê_α`, `ê_β` (Q8.24 bits).
+pub fn estimate_words(e: &Estimate, w: &mut [i32]) {
+    set_word(w, 0, e.theta.0);
+    set_word(w, 1, e.omega.to_bits());
+    set_word(w, 2, e.emf.alpha.to_bits());
+    set_word(w, 3, e.emf.beta.to_bits());
+}
+
+/// Inverse of [`estimate_words`].
+pub fn estimate_of(w: &[i32]) -> Estimate {
+    Estimate {
+        theta: Angle(word(w, 0)),
+        omega: Pu::from_bits(word(w, 1)),
+        emf: AlphaBeta {
+            alpha: Pu::from_bits(word(w, 2)),
+            beta: Pu::from_bits(word(w, 3)),
+        },
+    }
+}
+
+/// The NLO (`Estimator::update`), from zero state.
+pub struct NloCase(pub Nlo);
+
+impl Case for NloCase {
+    const NAME: &'static str = "nlo";
+    const INPUTS: usize = 4;
+    const OUTPUTS: usize = 4;
+    fn new(setup: &Setup) -> Result<Self, ConfigError> {
+        Ok(Self(Nlo::new(setup.nlo()?)))
+    }
+    fn step(&mut self, input: &[i32], output: &mut [i32]) {
+        estimate_words(&self.0.update(&observer_input(input)), output);
+    }
+}
+
+/// The AO (`Estimator::update`), from zero state.
+pub struct AoCase(pub Ao);
+
+impl Case for AoCase {
+    const NAME: &'static str = "ao";
+    const INPUTS: usize = 4;
+    const OUTPUTS: usize = 4;
+    fn new(setup: &Setup) -> Result<Self, ConfigError> {
+        Ok(Self(Ao::new(setup.ao()?)))
+    }
+    fn step(&mut self, input: &[i32], output: &mut [i32]) {
+        estimate_words(&self.0.update(&observer_input(input)), output);
+    }
+}
+
+/// Declares the list of cases: [`CASES`] and [`run_named`].
+macro_rules! cases {
+    ($($case:ty),* $(,)?) => {
+        /// Every case, in recording order.
+        pub const CASES: &[Shape] = &[$(shape::<$case>()),*];
+
+        /// Runs the case called `name` (`None`: no such case).
+        pub fn run_named(
+            name: &str,
+            setup: &Setup,
+            io: &mut dyn Io,
+        ) -> Option<Result<usize, ConfigError>> {
+            $(
+                if name == <$case as Case>::NAME {
+                    return Some(run::<$case>(setup, io));
+                }
+            )*
+            None
+        }
+    };
+}
+
+// The drive goes here (`DriveCase`, with its inputs and outputs as words).
+cases!(NloCase, AoCase);
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::vec::Vec;
+
+    /// Constant inputs (the pattern repeated over the case's input words) for `n` steps;
+    /// keeps the outputs.
+    struct Const {
+        input: [i32; 4],
+        n: usize,
+        outputs: Vec<i32>,
+    }
+
+    impl Io for Const {
+        fn input(&mut self, step: usize, input: &mut [i32]) -> bool {
+            for (j, w) in input.iter_mut().enumerate() {
+                *w = self.input[j % self.input.len()];
+            }
+            step < self.n
+        }
+        fn output(&mut self, _step: usize, output: &[i32]) -> bool {
+            self.outputs.extend_from_slice(output);
+            true
+        }
+    }
+
+    #[test]
+    fn every_case_runs_by_name_and_fits() {
+        let setup = Setup::motor_a().unwrap();
+        for shape in CASES {
+            assert!(shape.name.len() <= crate::format::NAME_LEN);
+            assert!(shape.inputs <= MAX_WORDS && shape.outputs <= MAX_WORDS);
+            let mut io = Const {
+                input: [1 << 22, -(1 << 22), 1 << 24, 0],
+                n: 10,
+                outputs: Vec::new(),
+            };
+            let steps = run_named(shape.name, &setup, &mut io).unwrap().unwrap();
+            assert_eq!(steps, 10, "{}", shape.name);
+            assert_eq!(io.outputs.len(), 10 * shape.outputs, "{}", shape.name);
+        }
+        assert!(
+            run_named(
+                "no-such-case",
+                &setup,
+                &mut Const {
+                    input: [0; 4],
+                    n: 1,
+                    outputs: Vec::new()
+                }
+            )
+            .is_none()
+        );
+    }
+
+    #[test]
+    fn words_round_trip() {
+        let x = ObserverInput {
+            i: AlphaBeta {
+                alpha: Pu::from_bits(-5),
+                beta: Pu::from_bits(i32::MAX),
+            },
+            v: AlphaBeta {
+                alpha: Pu::from_bits(i32::MIN),
+                beta: Pu::from_bits(7),
+            },
+        };
+        let mut w = [0; 4];
+        observer_input_words(&x, &mut w);
+        assert_eq!(observer_input(&w), x);
+        let e = Estimate {
+            theta: Angle(-123),
+            omega: Pu::from_bits(456),
+            emf: AlphaBeta {
+                alpha: Pu::from_bits(-1),
+                beta: Pu::from_bits(1),
+            },
+        };
+        estimate_words(&e, &mut w);
+        assert_eq!(estimate_of(&w), e);
+    }
+}

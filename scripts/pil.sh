@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# Processor-in-the-loop runs of pmsm-core in QEMU (examples/qemu, see its README.md):
+#
+#   1. records the replay cases on the host (pil-record, x86_64),
+#   2. builds the firmware for thumbv7em-none-eabihf (Cortex-M4, QEMU mps2-an386) and
+#      thumbv6m-none-eabi (Cortex-M0, QEMU microbit) in release, with the recording embedded,
+#   3. runs each in qemu-system-arm -icount shift=8 (the runners of examples/qemu/.cargo),
+#   4. prints every `PIL ...` line the firmware printed, then `PIL PASS` (exit 0) if both runs
+#      exited 0 with an exact calibration, benchmark figures and a bit-exact replay, else
+#      `PIL FAIL` (exit 1).
+#
+# Needs: rustup target add thumbv7em-none-eabihf thumbv6m-none-eabi;
+#        apt-get install -y qemu-system-arm.
+# Output: the PIL lines on stdout; progress, diagnostics and the firmware's `#` lines (image
+# size, peak stack, per-case replay) on stderr; full logs in examples/qemu/target/pil/ (or
+# $CARGO_TARGET_DIR/pil/).
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+qemu_dir="$root/examples/qemu"
+target_dir="${CARGO_TARGET_DIR:-$qemu_dir/target}"
+out="$target_dir/pil"
+timeout_s="${PIL_TIMEOUT_S:-300}"
+mkdir -p "$out"
+
+log() { printf 'pil: %s\n' "$*" >&2; }
+fail() {
+  log "$*"
+  printf 'PIL FAIL\n'
+  exit 1
+}
+
+command -v qemu-system-arm >/dev/null ||
+  fail "qemu-system-arm not found: apt-get install -y qemu-system-arm"
+for t in thumbv7em-none-eabihf thumbv6m-none-eabi; do
+  if command -v rustup >/dev/null && ! (cd "$qemu_dir" && rustup target list --installed) | grep -qx "$t"; then
+    fail "Rust target $t not installed: rustup target add thumbv7em-none-eabihf thumbv6m-none-eabi"
+  fi
+done
+
+cd "$qemu_dir"
+
+# 1. Host recording (the same pmsm-core source, built for the host).
+recording="$out/recording.bin"
+log "recording on the host -> $recording"
+cargo build --release -p pmsm-pil-host >&2 || fail "host recorder does not build"
+cargo run --release -q -p pmsm-pil-host -- --output "$recording" >&2 ||
+  fail "host recorder failed"
+
+# 2. Firmware for both machines (one cargo invocation: both targets build in parallel).
+log "building the firmware (thumbv7em-none-eabihf, thumbv6m-none-eabi)"
+PIL_RECORDING="$recording" cargo build --release -p pmsm-pil-firmware \
+  --target thumbv7em-none-eabihf --target thumbv6m-none-eabi >&2 ||
+  fail "firmware does not build"
+
+# 3. Run each in QEMU (cargo run execs the runner of .cargo/config.toml: its exit status is
+#    QEMU's, which is the firmware's semihosting exit status).
+status=0
+lines=()
+declare -A components
+for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
+  read -r cpu triple <<<"$run"
+  run_log="$out/$cpu.log"
+  log "running $cpu in QEMU (timeout ${timeout_s}s) -> $run_log"
+  rc=0
+  PIL_RECORDING="$recording" timeout "$timeout_s" \
+    cargo run --release -q -p pmsm-pil-firmware --target "$triple" </dev/null >"$run_log" 2>&1 || rc=$?
+  grep -E "^# $cpu " "$run_log" | sed 's/^/pil: /' >&2 || true
+  mapfile -t got < <(grep -E "^PIL $cpu " "$run_log" || true)
+  lines+=("${got[@]}")
+  problems=()
+  if [[ $rc -eq 124 ]]; then
+    problems+=("timed out after ${timeout_s}s")
+  elif grep -q 'Lockup' "$run_log"; then
+    problems+=("CPU lockup (a fault in the fault handler: stack overflow?)")
+  elif [[ $rc -ne 0 ]]; then
+    problems+=("exit status $rc")
+  fi
+  grep -qE "^PIL $cpu calibration .*exact=true$" "$run_log" || problems+=("no exact calibration")
+  grep -qE "^PIL $cpu replay bit_exact=true steps=[1-9][0-9]*$" "$run_log" ||
+    problems+=("replay not bit-exact")
+  names="$(grep -oE "^PIL $cpu [a-z0-9_]+ insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
+    awk '{print $3}' | sort | tr '\n' ' ')"
+  [[ -n $names ]] || problems+=("no benchmark figures")
+  components[$cpu]="$names"
+  if ((${#problems[@]})); then
+    status=1
+    log "$cpu: ${problems[*]}; last lines of $run_log:"
+    tail -n 20 "$run_log" | sed 's/^/    /' >&2
+  fi
+done
+if [[ "${components[cortex-m4]}" != "${components[cortex-m0]}" ]]; then
+  status=1
+  log "the two machines report different components:"
+  log "  cortex-m4: ${components[cortex-m4]}"
+  log "  cortex-m0: ${components[cortex-m0]}"
+fi
+
+# 4. Report.
+printf '%s\n' "${lines[@]}"
+if [[ $status -eq 0 ]]; then
+  printf 'PIL PASS\n'
+else
+  printf 'PIL FAIL\n'
+fi
+exit "$status"

@@ -1,0 +1,51 @@
+//! Instructions per call on Cortex-M4 and Cortex-M0, from `scripts/pil.sh` (QEMU).
+
+use std::collections::BTreeMap;
+use std::process::Command;
+
+/// The markdown section; says how to get it when QEMU is missing.
+pub fn section() -> String {
+    let mut s = String::from(
+        "## Instructions per call on the MCUs (processor-in-the-loop)\n\n\
+         `scripts/pil.sh` runs the core in QEMU (`qemu-system-arm`, `mps2-an386` Cortex-M4 and \
+         `microbit` Cortex-M0, release builds) and counts instructions with SysTick under \
+         `-icount` (calibrated exactly at every start; `examples/qemu/README.md`). Figures per \
+         call over realistic inputs, mean and max; the replay compares the target's outputs \
+         with the host's bit for bit.\n\n",
+    );
+    let out = Command::new("bash")
+        .arg(super::root().join("scripts/pil.sh"))
+        .output();
+    let text = match out {
+        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout).into_owned(),
+        _ => {
+            s.push_str("Not measured here: `scripts/pil.sh` did not pass (is `qemu-system-arm` installed?).\n\n");
+            return s;
+        }
+    };
+    // component -> [m4 mean, m4 max, m0 mean, m0 max]
+    let mut table: BTreeMap<String, [String; 4]> = BTreeMap::new();
+    let mut replay = Vec::new();
+    for line in text.lines() {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        match f.as_slice() {
+            ["PIL", cpu, name, mean, max] if mean.starts_with("insn_mean=") => {
+                let col = if *cpu == "cortex-m4" { 0 } else { 2 };
+                let e = table.entry((*name).to_owned()).or_default();
+                e[col] = mean.trim_start_matches("insn_mean=").to_owned();
+                e[col + 1] = max.trim_start_matches("insn_max=").to_owned();
+            }
+            ["PIL", cpu, "replay", exact, steps] => replay.push(format!("{cpu}: {exact}, {steps}")),
+            _ => {}
+        }
+    }
+    s.push_str("| component | M4 mean | M4 max | M0 mean | M0 max |\n|---|--:|--:|--:|--:|\n");
+    for (name, v) in &table {
+        s.push_str(&format!(
+            "| {name} | {} | {} | {} | {} |\n",
+            v[0], v[1], v[2], v[3]
+        ));
+    }
+    s.push_str(&format!("\nReplay: {}.\n\n", replay.join("; ")));
+    s
+}
