@@ -72,7 +72,7 @@ pub mod sensor;
 
 pub use inverter::{Inverter, InverterKind, InverterModel};
 pub use motor::{Mechanics, Motor, MotorModel, MotorState};
-pub use plant::{Plant, Sample};
+pub use plant::{Injected, Plant, Sample};
 pub use saturation::Saturation;
 pub use sensor::{AdcParams, CurrentSensor};
 

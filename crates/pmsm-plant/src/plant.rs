@@ -29,6 +29,24 @@ pub struct Sample {
     pub duties_clamped: bool,
 }
 
+/// Faults injected into the plant (the reliability tests). Each acts from when it is set.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Injected {
+    /// An open phase (0 = a, 1 = b, 2 = c): a broken wire, modelled as a series resistance of
+    /// [`OPEN_PHASE_OHM_PER_OHM_BASE`] times the base impedance in that phase.
+    pub open_phase: Option<usize>,
+    /// A current channel stuck at this code (0 = a, 1 = b, 2 = c).
+    pub stuck_adc: Option<(usize, u16)>,
+    /// A resistive short between two motor terminals (phases `k` and `(k + 1) mod 3`), Ω. The
+    /// inverter legs are stiff voltage sources: the motor still sees their voltages, and the
+    /// leg current sensors see the short's period-average current added.
+    pub short: Option<(usize, f64)>,
+}
+
+/// Series resistance of an open phase, relative to `V_DC/I_FS` (a few kΩ on motor B): its
+/// current falls to milliamperes.
+pub const OPEN_PHASE_OHM_PER_OHM_BASE: f64 = 30.0;
+
 /// The whole plant: motor, inverter and phase-current sensing.
 #[derive(Clone, Debug)]
 pub struct Plant {
@@ -37,6 +55,9 @@ pub struct Plant {
     sensor: CurrentSensor,
     vdc_v: f64,
     periods: u64,
+    injected: Injected,
+    /// Duties of the last period (the short's current depends on them).
+    last_duties: [f64; 3],
 }
 
 impl Plant {
@@ -49,6 +70,8 @@ impl Plant {
             inverter: Inverter::new(inverter)?,
             sensor: CurrentSensor::new(adc)?,
             periods: 0,
+            injected: Injected::default(),
+            last_duties: [0.0; 3],
         })
     }
 
@@ -111,15 +134,66 @@ impl Plant {
     pub fn step_pwm(&mut self, duties: [f64; 3], load_nm: f64) -> Result<Sample, PlantError> {
         let clamped = duties.iter().any(|&d| !(0.0..=1.0).contains(&d));
         let mut motor = self.motor.clone();
-        self.inverter
-            .step_period(&mut motor, duties, self.vdc_v, load_nm)?;
+        self.last_duties = duties.map(|x| if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) });
+        match (self.injected.open_phase, self.injected.short) {
+            (None, None) => self
+                .inverter
+                .step_period(&mut motor, duties, self.vdc_v, load_nm)?,
+            _ => self.faulty_period(&mut motor, duties, load_nm)?,
+        }
         Ok(self.finish_period(motor, clamped))
+    }
+
+    /// The faults injected so far.
+    pub fn injected(&self) -> Injected {
+        self.injected
+    }
+
+    /// Injects faults (replacing the previous set).
+    pub fn inject(&mut self, faults: Injected) {
+        self.injected = faults;
+    }
+
+    /// One period with an open phase or a terminal short, on the averaged inverter model.
+    ///
+    /// An open phase is a series resistance `R_o` in its winding: its terminal sees the leg
+    /// voltage minus `R_o i_x` (the neutral shift is the common mode the Clarke transform
+    /// drops, so this is exact for a star winding). A short of resistance `R_s` between
+    /// terminals `k` and `m` draws `(v_k − v_m)/R_s` from the two legs: the phase currents are
+    /// unchanged by it, but the current sensors in the legs see it added (`+` on `k`, `−` on
+    /// `m`), as low-side shunts would; the motor sees the legs' voltages.
+    fn faulty_period(
+        &mut self,
+        motor: &mut Motor,
+        duties: [f64; 3],
+        load_nm: f64,
+    ) -> Result<(), PlantError> {
+        let m = *self.inverter.model();
+        let vdc = self.vdc_v;
+        let period = m.period_s();
+        let d = duties.map(|x| x.clamp(0.0, 1.0));
+        let r_open = OPEN_PHASE_OHM_PER_OHM_BASE * vdc / self.sensor.params().full_scale_a;
+        let open = self.injected.open_phase;
+        // Stiff: the open phase's R_o/L sets the step.
+        let h = m
+            .averaged_substep_limit_s(vdc, motor.min_inductance_h())
+            .min(0.2 * motor.min_inductance_h() / r_open);
+        motor.step_with_limit(period, load_nm, h, |i| {
+            let mut legs = [0, 1, 2].map(|k| m.leg_voltage_averaged_v(d[k], vdc, i[k]));
+            if let Some(x) = open
+                && let Some(v) = legs.get_mut(x)
+            {
+                *v -= r_open * i[x];
+            }
+            crate::clarke(legs)
+        })
     }
 
     /// Integrates one PWM period with the inverter's outputs off (all switches open; see
     /// [`Inverter::step_off`]), then samples the currents. On error the plant is unchanged.
     pub fn step_off(&mut self, load_nm: f64) -> Result<Sample, PlantError> {
         let mut motor = self.motor.clone();
+        self.last_duties = [0.0; 3];
         self.inverter.step_off(&mut motor, self.vdc_v, load_nm)?;
         Ok(self.finish_period(motor, false))
     }
@@ -129,7 +203,26 @@ impl Plant {
         self.motor = motor;
         self.periods += 1;
         let i_true = self.motor.i_abc();
-        let (codes, i_meas) = self.sensor.measure(i_true);
+        let mut i_leg = i_true;
+        if let Some((k, r_short)) = self.injected.short {
+            // The legs are voltage sources: the short draws the period average of
+            // (v_k − v_m)/R_s from them, which the leg shunts measure.
+            let m = (k + 1) % 3;
+            let dk = self.last_duties.get(k).copied().unwrap_or(0.0);
+            let dm = self.last_duties.get(m).copied().unwrap_or(0.0);
+            let i_s = (dk - dm) * self.vdc_v / r_short.max(1e-6);
+            if let (Some(a), Some(b)) = (i_leg.get(k).copied(), i_leg.get(m).copied()) {
+                i_leg[k] = a + i_s;
+                i_leg[m] = b - i_s;
+            }
+        }
+        let (mut codes, mut i_meas) = self.sensor.measure(i_leg);
+        if let Some((k, code)) = self.injected.stuck_adc
+            && let (Some(c), Some(x)) = (codes.get_mut(k), i_meas.get_mut(k))
+        {
+            *c = code;
+            *x = self.sensor.code_to_amps(code);
+        }
         Sample {
             t_s: self.time_s(),
             i_abc_a_true: i_true,

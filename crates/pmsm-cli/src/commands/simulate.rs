@@ -201,6 +201,8 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
     let mut rows = Vec::with_capacity(n);
     let (mut i_meas, mut vdc) = ([0.0; 3], sc.inverter.vdc_v);
     let mut ipd = None;
+    let mut last_codes = [0u16; 3];
+    let mut injector = Injector::new(&sc.faults);
     drive.start();
     for k in 0..n {
         let t = k as f64 / sample_hz;
@@ -249,6 +251,9 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
             state: drive.state(),
             i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
         });
+        injector
+            .apply(t, &mut plant, last_codes)
+            .map_err(|e| anyhow!("{shown}: t = {t:.6} s: {e}"))?;
         let load = sc.load.at(t);
         for _ in 0..ratio {
             let sample = if out.pwm_on {
@@ -258,10 +263,69 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
             }
             .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
             i_meas = sample.i_abc_a_measured;
+            last_codes = sample.adc_codes;
             vdc = sample.vdc_v;
         }
     }
     Ok(Run { rows, ipd })
+}
+
+/// Applies the `[faults]` of a scenario to the plant when their time comes, once each.
+struct Injector {
+    faults: scenario_file::Faults,
+    done: [bool; 5],
+}
+
+impl Injector {
+    fn new(faults: &scenario_file::Faults) -> Self {
+        Self {
+            faults: *faults,
+            done: [false; 5],
+        }
+    }
+
+    fn due(&mut self, k: usize, at: Option<f64>, t: f64) -> bool {
+        match (at, self.done.get(k).copied()) {
+            (Some(at), Some(false)) if t >= at => {
+                self.done[k] = true;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    fn apply(
+        &mut self,
+        t: f64,
+        plant: &mut Plant,
+        codes: [u16; 3],
+    ) -> Result<(), pmsm_plant::PlantError> {
+        let f = self.faults;
+        let mut inj = plant.injected();
+        if self.due(0, f.phase_open_at_s, t) {
+            inj.open_phase = f.phase_open.map(scenario_file::Phase::index);
+        }
+        if self.due(1, f.adc_stuck_at_s, t)
+            && let Some(k) = f.adc_stuck_phase.map(scenario_file::Phase::index)
+        {
+            inj.stuck_adc = codes.get(k).map(|c| (k, *c));
+        }
+        if self.due(2, f.short_at_s, t) {
+            inj.short = f
+                .short_phases
+                .map(|p| (p.first(), f.short_ohm.unwrap_or(0.1)));
+        }
+        plant.inject(inj);
+        if self.due(3, f.locked_rotor_at_s, t) {
+            plant.set_mechanics(pmsm_plant::Mechanics::Locked)?;
+        }
+        if self.due(4, f.vdc_sag_at_s, t)
+            && let Some(v) = f.vdc_sag_to_v
+        {
+            plant.set_vdc_v(v)?;
+        }
+        Ok(())
+    }
 }
 
 /// Statistics of one phase of a run (between two breakpoints of the references).

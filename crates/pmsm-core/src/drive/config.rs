@@ -166,6 +166,7 @@ pub struct DriveConfig {
     pub(crate) ipd: IpdConfig,
     pub(crate) open_loop: OpenLoopConfig,
     pub(crate) protection: ProtectionConfig,
+    pub(crate) monitor: super::monitor::MonitorConfig,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -261,6 +262,19 @@ impl DriveConfig {
                     min: 0.0,
                     max: 0.0,
                 })?,
+            },
+            monitor: {
+                let accel =
+                    motor.p() * motor.kt_nm_per_a * design.speed.current_limit_a / motor.j_kg_m2;
+                let limit = design.speed.current_limit_a / base.current_a;
+                super::monitor::MonitorConfig::new(ts, base.omega_e_rad_s, accel, limit).ok_or(
+                    ConfigError::Gain {
+                        key: "sample_hz",
+                        value: sample_hz,
+                        min: 0.0,
+                        max: 0.0,
+                    },
+                )?
             },
             protection: ProtectionConfig {
                 overcurrent: pu_from_f64(p.overcurrent_a / base.current_a),

@@ -18,6 +18,7 @@
 //! (the computation is assumed to finish before the first switching edge of the period).
 
 mod config;
+mod monitor;
 mod startup;
 
 pub use config::{DriveConfig, DriveDesign, OpenLoopDesign, Protection, StartupMode};
@@ -47,6 +48,20 @@ pub enum Fault {
     /// At the end of the open-loop start the estimator disagreed with the imposed frame
     /// (angle difference, speed per unit).
     Handover(Angle, Pu),
+    /// The three phase currents do not add up to zero (`None`), or one channel (0 = a, 1 = b,
+    /// 2 = c) reads the same value while the others move: a current sensor is broken.
+    CurrentSensor(Option<u8>),
+    /// A phase (0 = a, 1 = b, 2 = c) carries no current while the others do: open winding,
+    /// cable or switch.
+    PhaseLoss(u8),
+    /// The speed loop is at its current limit and the rotor far below the reference: stalled
+    /// or locked.
+    Stall,
+    /// The estimated speed changes faster than the motor can accelerate: the estimator lost
+    /// its lock.
+    LossOfLock,
+    /// The control step did not finish within its period (reported by the binding).
+    Overrun,
 }
 
 impl Fault {
@@ -58,6 +73,11 @@ impl Fault {
             Fault::BusOverVoltage(_) => "bus_overvoltage",
             Fault::InitialPosition(_) => "initial_position",
             Fault::Handover(_, _) => "handover",
+            Fault::CurrentSensor(_) => "current_sensor",
+            Fault::PhaseLoss(_) => "phase_loss",
+            Fault::Stall => "stall",
+            Fault::LossOfLock => "loss_of_lock",
+            Fault::Overrun => "overrun",
         }
     }
 }
@@ -131,6 +151,9 @@ pub struct Drive {
     v_est: AlphaBeta,
     telemetry: Telemetry,
     ipd_result: Option<IpdResult>,
+    monitor: monitor::Monitor,
+    /// The speed loop's current reference at the last sample.
+    iq_ref: Pu,
 }
 
 impl Drive {
@@ -149,6 +172,8 @@ impl Drive {
             v_est: AlphaBeta::default(),
             telemetry: Telemetry::default(),
             ipd_result: None,
+            monitor: monitor::Monitor::default(),
+            iq_ref: Pu::ZERO,
         }
     }
 
@@ -183,6 +208,7 @@ impl Drive {
             return;
         }
         self.current.reset();
+        self.monitor.reset();
         self.v_est = AlphaBeta::default();
         self.state = match self.config.design.startup {
             StartupMode::Ipd => {
@@ -200,6 +226,14 @@ impl Drive {
     /// Turns the outputs off and returns to `Idle` (also from a fault).
     pub fn stop(&mut self) {
         self.state = DriveState::Idle;
+    }
+
+    /// The binding reports that a control step overran its period: trips with
+    /// [`Fault::Overrun`] (outputs off) unless already idle or faulted.
+    pub fn report_overrun(&mut self) {
+        if !matches!(self.state, DriveState::Idle | DriveState::Fault(_)) {
+            self.state = DriveState::Fault(Fault::Overrun);
+        }
     }
 
     /// Leaves a fault for `Idle`; does nothing in other states.
@@ -244,6 +278,17 @@ impl Drive {
         self.speed_filtered = self
             .speed_filtered
             .saturating_add(self.config.speed_filter.apply(delta));
+        let signals = monitor::Signals {
+            i_abc: input.i_abc,
+            i,
+            omega: estimate.omega,
+            omega_ref: self.run_speed_ref(),
+            iq_ref: self.iq_ref,
+            running: self.state == DriveState::Run,
+        };
+        if let Some(fault) = self.monitor.check(&self.config.monitor, &signals) {
+            return self.trip(fault);
+        }
         match self.state {
             DriveState::Ipd => {
                 let out = self.ipd.step(i, input.vdc);
@@ -290,10 +335,9 @@ impl Drive {
                 self.control(i, input.vdc, theta, omega, i_ref)
             }
             DriveState::Run => {
-                let iq_ref = self
-                    .speed
-                    .step(self.run_speed_ref(), self.speed_filtered)
-                    .iq_ref;
+                let speed = self.speed.step(self.run_speed_ref(), self.speed_filtered);
+                self.iq_ref = speed.iq_ref;
+                let iq_ref = speed.iq_ref;
                 self.control(
                     i,
                     input.vdc,
