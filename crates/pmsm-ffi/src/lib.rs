@@ -1,0 +1,38 @@
+//! C ABI of the sensorless drive: a `no_std` static library (`libpmsm_ffi.a`) and its
+//! generated header `include/pmsm.h`, for vendor C firmware.
+//!
+//! Only `#[repr(C)]` structs of integers and doubles, C enums as integers and one opaque
+//! handle cross the boundary. The caller provides the storage of a drive (no allocation).
+//! Every function checks its pointers for null and alignment and its integer codes for range,
+//! and returns a [`pmsm_status_t`]; none panics.
+//!
+//! Units: configuration in SI doubles (once, at init); the per-sample [`pmsm_step`] is integer
+//! only: currents and bus voltage as `int32_t` Q8.24 per unit (`2^24` = 1 pu), duties as Q2.30
+//! fractions of the period (`2^30` = 1) and as timer compare values.
+#![no_std]
+#![allow(non_camel_case_types)]
+
+// The host build (tests, the host static library) links std, which provides the panic
+// handler; the bare-metal build brings its own, below.
+#[cfg(not(target_os = "none"))]
+extern crate std;
+
+mod api;
+mod convert;
+
+pub use api::*;
+pub use convert::{fault_code, state_code};
+
+/// The panic handler of the bare-metal static library. Nothing in the library panics on
+/// purpose (the core has no panic paths on the control path and every argument is checked);
+/// should one be reached, the CPU spins here with the PWM left to the firmware's watchdog or
+/// break input. It is an internal lang item (`rust_begin_unwind`), not a C symbol: it cannot
+/// clash with the firmware's `HardFault_Handler`, `abort` or the like. The thumb targets
+/// compile with `panic = "abort"` (their target default), so no unwinding code is linked.
+#[cfg(all(target_os = "none", not(test)))]
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    loop {
+        core::hint::spin_loop();
+    }
+}
