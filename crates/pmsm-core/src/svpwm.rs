@@ -106,19 +106,12 @@ impl SvpwmConfig {
             };
         }
         let v_max = self.v_max(vdc);
-        let p = polar(v.alpha, v.beta);
-        let (v, saturated) = if p.magnitude > v_max {
-            // Onto the circle, same angle.
-            let sc = p.angle.sin_cos();
-            (
-                AlphaBeta {
-                    alpha: mul_unit(v_max, sc.cos),
-                    beta: mul_unit(v_max, sc.sin),
-                },
-                true,
-            )
-        } else {
+        let (v, saturated) = if clearly_inside(v, v_max) {
+            // Far inside the circle: the CORDIC test of `limit` would find the same, so the
+            // result is bit for bit the same without the 28 CORDIC iterations.
             (v, false)
+        } else {
+            limit(v, v_max)
         };
         let ph = inverse_clarke(v);
         let (a, b, c) = (
@@ -151,6 +144,38 @@ impl SvpwmConfig {
             saturated,
             bus_low: false,
         }
+    }
+}
+
+/// `|v| < v_max (1 − 2⁻¹²)`, exactly (squares in `u64`: each component's magnitude is at
+/// most 2³¹, so each square is at most 2⁶² and their sum fits). The margin, 2.4e−4 of
+/// `v_max`, is far beyond the CORDIC magnitude's error (3e−7 relative, `docs/PERFORMANCE.md`),
+/// so a vector accepted here is one that [`limit`] leaves unchanged.
+#[inline]
+fn clearly_inside(v: AlphaBeta, v_max: Pu) -> bool {
+    let a = v.alpha.to_bits().unsigned_abs() as u64;
+    let b = v.beta.to_bits().unsigned_abs() as u64;
+    let r = v_max.to_bits().max(0) as u64;
+    let r = r - (r >> 12);
+    a * a + b * b < r * r
+}
+
+/// `v` limited to the circle of radius `v_max` keeping its angle (CORDIC magnitude and
+/// angle), and whether it was limited.
+fn limit(v: AlphaBeta, v_max: Pu) -> (AlphaBeta, bool) {
+    let p = polar(v.alpha, v.beta);
+    if p.magnitude > v_max {
+        // Onto the circle, same angle.
+        let sc = p.angle.sin_cos();
+        (
+            AlphaBeta {
+                alpha: mul_unit(v_max, sc.cos),
+                beta: mul_unit(v_max, sc.sin),
+            },
+            true,
+        )
+    } else {
+        (v, false)
     }
 }
 

@@ -190,8 +190,12 @@ impl Pi {
         }
         if back_calc && !outward {
             // k_t (clamp(u_raw) − u_raw): pulls I toward the value that puts u on the limit.
+            // Zero inside the limits (the common case): skip the i128 product, whose result
+            // would be exactly 0.
             let excess = raw.max(lo).min(hi).saturating_sub(raw);
-            self.integ = self.integ.saturating_add(self.config.kt.apply_i64(excess));
+            if excess != 0 {
+                self.integ = self.integ.saturating_add(self.config.kt.apply_i64(excess));
+            }
         }
         // Clamp the integrator so that ff + I alone stays within the limits.
         let i_lo = lo.saturating_sub(ff).clamp(-WIDE_LIMIT, WIDE_LIMIT);

@@ -6,17 +6,30 @@
 //! call therefore includes loading the inputs from memory and storing the output, as a caller
 //! in a control interrupt would.
 //!
-//! To add a component (SVPWM, the current loops, the MRAS-current estimator, the drive's
-//! `step()`), add one `report(...)` to [`run_all`] (names are stable identifiers: `snake_case`,
-//! the function, not the paper).
+//! To add a component, add one `report(...)` to [`run_all`] (names are stable identifiers:
+//! `snake_case`, the function, not the paper). The drive's parts run on motor B (seed 001);
+//! `ipd_step` and `drive_step` on the recorded closed loop of the `drive` replay case.
 
 use core::hint::black_box;
 
+use pmsm_core::control::{
+    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, SpeedConfig,
+    SpeedController, SpeedDesign, SpeedOutput,
+};
 use pmsm_core::cordic::{Polar, polar};
+use pmsm_core::deadtime::{DeadTimeConfig, DeadTimeDesign};
+use pmsm_core::drive::{DriveInput, DriveOutput};
 use pmsm_core::frames::{clarke, inverse_clarke, inverse_park, park};
+use pmsm_core::ipd::{Ipd, IpdConfig, IpdDesign, IpdOutput};
 use pmsm_core::num::{mul, mul_unit, pu_from_f64};
-use pmsm_core::observer::{Ao, Estimate, Estimator, MrasEmf, Nlo, ObserverInput};
+use pmsm_core::observer::{
+    Ao, Estimate, Estimator, MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, Nlo,
+    ObserverInput,
+};
+use pmsm_core::svpwm::{SvpwmConfig, SvpwmOutput};
 use pmsm_core::{Abc, AlphaBeta, Angle, ConfigError, Dq, Pu, SinCos};
+use pmsm_pil::cases::{self, Case, DRIVE_STATE_WORD, DriveCase, STATE_RUN};
+use pmsm_pil::format::{CaseData, Recording};
 use pmsm_pil::setup::Setup;
 
 use crate::meter::Meter;
@@ -173,6 +186,94 @@ fn bench_estimator<E: Estimator>(meter: &Meter, setup: &Setup, make: impl FnOnce
     )
 }
 
+/// xorshift32 noise of ±2^(bits−1) LSB.
+fn noise(state: &mut u32, bits: u32) -> Pu {
+    *state ^= *state << 13;
+    *state ^= *state >> 17;
+    *state ^= *state << 5;
+    Pu::from_bits((*state >> (32 - bits)) as i32 - (1 << (bits - 1)))
+}
+
+/// The drive case of the embedded recording (`None` if it was not recorded).
+fn drive_recording() -> Option<CaseData<'static>> {
+    Recording::parse(crate::replay::RECORDING)
+        .ok()?
+        .cases()
+        .find(|c| c.name == <DriveCase as Case>::NAME)
+}
+
+/// First recorded step that starts in `Run` (the state after the step before it).
+fn first_run_step(rec: &CaseData) -> usize {
+    (1..rec.steps)
+        .find(|&k| rec.output(k - 1, DRIVE_STATE_WORD) == STATE_RUN)
+        .unwrap_or(rec.steps)
+}
+
+/// Recorded drive input of `step` (and its speed reference).
+fn recorded_drive_input(rec: &CaseData, step: usize) -> (DriveInput, Pu) {
+    let mut w = [0i32; 5];
+    rec.inputs_of(step, &mut w);
+    cases::drive_input(&w)
+}
+
+/// `Drive::step` in `Run` on the recorded closed loop of the `drive` replay case (motor B,
+/// current-model MRAS): the drive is fed the recorded inputs, unmeasured, through its initial
+/// position detection, then every step in `Run` is measured.
+#[inline(never)]
+fn bench_drive_step(meter: &Meter, rec: &CaseData<'static>) -> Option<Stats> {
+    let k0 = first_run_step(rec);
+    let calls = rec.steps.checked_sub(k0).filter(|&n| n > 0)? as u32;
+    let st = bench(
+        meter,
+        calls,
+        || {
+            let mut d = DriveCase::drive().ok();
+            if let Some(d) = d.as_mut() {
+                for k in 0..k0 {
+                    let (x, w) = recorded_drive_input(rec, k);
+                    d.set_speed_ref(w);
+                    black_box(d.step(&x));
+                }
+            }
+            (DriveInput::default(), None::<DriveOutput>, d)
+        },
+        |s, k| {
+            let (x, w) = recorded_drive_input(rec, k0 + k as usize);
+            s.0 = x;
+            if let Some(d) = s.2.as_mut() {
+                d.set_speed_ref(w);
+            }
+        },
+        |s| {
+            if let Some(d) = s.2.as_mut() {
+                s.1 = Some(d.step(&s.0));
+            }
+        },
+    );
+    Some(st)
+}
+
+/// `Ipd::step` over the recorded detection (the steps of the drive case before `Run`).
+#[inline(never)]
+fn bench_ipd(meter: &Meter, rec: &CaseData<'static>, cfg: IpdConfig) -> Stats {
+    let n = first_run_step(rec).saturating_sub(1).max(1) as u32;
+    bench(
+        meter,
+        n,
+        || {
+            let mut ipd = Ipd::new(cfg);
+            ipd.restart();
+            (AlphaBeta::default(), Pu::ZERO, None::<IpdOutput>, ipd)
+        },
+        |s, k| {
+            let (x, _) = recorded_drive_input(rec, k as usize);
+            s.0 = clarke(x.i_abc);
+            s.1 = x.vdc;
+        },
+        |s| s.2 = Some(s.3.step(s.0, s.1)),
+    )
+}
+
 /// Runs every benchmark and passes each figure to `report(name, stats)`. Configurations are
 /// built here, states in each [`bench`] (in its own frame: build a drive in `init`).
 #[inline(never)]
@@ -272,5 +373,114 @@ pub fn run_all(
         "mras_emf_update",
         &bench_estimator(meter, setup, || MrasEmf::new(c)),
     );
+
+    // The drive's parts, on motor B (seed 001) at 14 kHz on 540 V.
+    let b = Setup::motor_b()?;
+    let vdc = b.base.voltage_pu(b.inverter.vdc_v);
+    let c = MrasCurrentConfig::new(
+        &b.motor,
+        &b.base,
+        MrasCurrentGains::default_for(&b.motor, &b.base),
+    )?;
+    report(
+        "mras_current_update",
+        &bench_estimator(meter, &b, || {
+            let mut e = MrasCurrent::new(c);
+            e.reset(Angle(0x2000_0000), Pu::ZERO);
+            e
+        }),
+    );
+
+    // SVPWM: vectors at every angle, 0.1 to 1.3 times the largest the bus makes (a third of
+    // them saturate), on the nominal bus.
+    let m = SvpwmConfig::default();
+    let v_max = m.v_max(vdc);
+    let st = bench(
+        meter,
+        TRANSFORM_CALLS,
+        || (AlphaBeta::default(), None::<SvpwmOutput>),
+        |s, k| {
+            let r = mul(v_max, Pu::from_bits((k % 13 + 1) as i32 * (1 << 24) / 10));
+            s.0 = phasor(r, golden(k));
+        },
+        |s| s.1 = Some(m.modulate(s.0, vdc)),
+    );
+    report("svpwm", &st);
+
+    // Current loops: half the rated current on q, noisy measurement, at 800 r/min.
+    let cc = CurrentConfig::new(&b.motor, &b.base, CurrentDesign::default_for(&b.base))?;
+    let omega = b.base.speed_pu(800.0 * core::f64::consts::TAU / 60.0 * 3.0);
+    let st = bench(
+        meter,
+        ESTIMATOR_CALLS,
+        || {
+            (
+                CurrentInput::default(),
+                CurrentOutput::default(),
+                CurrentController::new(cc),
+                0x1234_5678u32,
+            )
+        },
+        |s, _| {
+            let i_ref = Dq {
+                d: Pu::ZERO,
+                q: pu_from_f64(0.5),
+            };
+            s.0 = CurrentInput {
+                i_ref,
+                i: Dq {
+                    d: noise(&mut s.3, 20),
+                    q: i_ref.q.saturating_add(noise(&mut s.3, 20)),
+                },
+                omega,
+                vdc,
+                hold: false,
+            };
+        },
+        |s| s.1 = s.2.step(&s.0),
+    );
+    report("current_loops", &st);
+
+    // Speed loop: 800 r/min reference, a noisy estimate around it.
+    let sc = SpeedConfig::new(&b.motor, &b.base, SpeedDesign::default_for(&b.base))?;
+    let st = bench(
+        meter,
+        ESTIMATOR_CALLS,
+        || {
+            (
+                (Pu::ZERO, Pu::ZERO),
+                SpeedOutput::default(),
+                SpeedController::new(sc),
+                0x8765_4321u32,
+            )
+        },
+        |s, _| s.0 = (omega, omega.saturating_add(noise(&mut s.3, 18))),
+        |s| s.1 = s.2.step(s.0.0, s.0.1),
+    );
+    report("speed_loop", &st);
+
+    // Dead-time error vector: a rotating current of 0.3 pu (through every zero crossing).
+    let dt = DeadTimeConfig::new(
+        &b.inverter,
+        &b.base,
+        DeadTimeDesign::default_for(&b.motor, &b.inverter),
+    )?;
+    let st = bench(
+        meter,
+        TRANSFORM_CALLS,
+        <(AlphaBeta, AlphaBeta)>::default,
+        |s, k| s.0 = phasor(pu_from_f64(0.3), golden(k)),
+        |s| s.1 = dt.error_vector(s.0, vdc),
+    );
+    report("deadtime", &st);
+
+    // The drive's initial position detection and the drive step, on the recorded run.
+    let ipd = IpdConfig::new(&b.motor, &b.base, IpdDesign::default())?;
+    if let Some(rec) = drive_recording() {
+        report("ipd_step", &bench_ipd(meter, &rec, ipd));
+        if let Some(st) = bench_drive_step(meter, &rec) {
+            report("drive_step", &st);
+        }
+    }
     Ok(())
 }

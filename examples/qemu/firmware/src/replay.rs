@@ -7,7 +7,7 @@ use pmsm_pil::format::{CaseData, FormatError, Recording};
 use pmsm_pil::setup::Setup;
 
 /// The host's recording (see `build.rs`).
-static RECORDING: &[u8] = include_bytes!(env!("PIL_RECORDING_PATH"));
+pub static RECORDING: &[u8] = include_bytes!(env!("PIL_RECORDING_PATH"));
 
 /// Bytes of the embedded recording.
 pub fn recording_len() -> usize {

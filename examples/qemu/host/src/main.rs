@@ -12,15 +12,21 @@ use std::f64::consts::PI;
 use std::path::Path;
 use std::process::ExitCode;
 
+use pmsm_core::drive::DriveInput;
 use pmsm_core::observer::ObserverInput;
-use pmsm_core::{AlphaBeta, PerUnit};
+use pmsm_core::{Abc, AlphaBeta, Angle, PerUnit, Pu};
+use pmsm_pil::cases::Case;
 use pmsm_pil::cases::{self, CASES, Io, Shape};
 use pmsm_pil::format;
-use pmsm_pil::setup::{SAMPLE_HZ, Setup};
+use pmsm_pil::setup::{DRIVE_SAMPLE_HZ, SAMPLE_HZ, Setup};
 
 /// Default number of steps per case (0.1 s at 20 kHz). The micro:bit's 256 KiB of flash
 /// holds the firmware and about 5000 steps of 8 words.
-const DEFAULT_STEPS: usize = 2000;
+const DEFAULT_STEPS: usize = 200;
+
+/// Default number of steps of the drive case (0.2 s at 14 kHz: initial position detection,
+/// the ramp to 800 r/min, a load step).
+const DEFAULT_DRIVE_STEPS: usize = 2800;
 
 fn main() -> ExitCode {
     match run() {
@@ -39,6 +45,7 @@ fn run() -> Result<(), String> {
         .unwrap_or(Path::new(".."));
     let mut output = workspace.join("target/pil/recording.bin");
     let mut steps = DEFAULT_STEPS;
+    let mut drive_steps = DEFAULT_DRIVE_STEPS;
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         match arg.as_str() {
@@ -50,9 +57,16 @@ fn run() -> Result<(), String> {
                     .filter(|&n| n > 0)
                     .ok_or("--steps needs a positive integer")?
             }
+            "--drive-steps" => {
+                drive_steps = args
+                    .next()
+                    .and_then(|s| s.parse().ok())
+                    .filter(|&n| n > 0)
+                    .ok_or("--drive-steps needs a positive integer")?
+            }
             _ => {
                 return Err(format!(
-                    "unknown argument {arg:?} (usage: pil-record [--output PATH] [--steps N])"
+                    "unknown argument {arg:?} (usage: pil-record [--output PATH] [--steps N] [--drive-steps N])"
                 ));
             }
         }
@@ -60,17 +74,22 @@ fn run() -> Result<(), String> {
     let setup = Setup::motor_a().map_err(|e| format!("motor A set-up: {e}"))?;
     let mut bytes = format::file_header(CASES.len() as u32).to_vec();
     for shape in CASES {
+        let steps = if shape.name == "drive" {
+            drive_steps
+        } else {
+            steps
+        };
         let mut io = scenario(shape, &setup, steps)?;
-        let ran = cases::run_named(shape.name, &setup, &mut io)
+        let ran = cases::run_named(shape.name, &setup, &mut *io)
             .ok_or_else(|| format!("case {} is in CASES but not in run_named", shape.name))?
             .map_err(|e| format!("case {}: {e}", shape.name))?;
-        if ran != steps || io.words.len() != steps * (shape.inputs + shape.outputs) {
+        if ran != steps || io.words().len() != steps * (shape.inputs + shape.outputs) {
             return Err(format!("case {}: ran {ran} of {steps} steps", shape.name));
         }
         let header = format::case_header(shape.name, shape.inputs, shape.outputs, steps)
             .map_err(|e| format!("case {}: {e}", shape.name))?;
         bytes.extend_from_slice(&header);
-        bytes.extend(io.words.iter().flat_map(|w| w.to_le_bytes()));
+        bytes.extend(io.words().iter().flat_map(|w| w.to_le_bytes()));
         eprintln!(
             "pil-record: {:<10} {steps} steps, {}",
             shape.name,
@@ -102,14 +121,181 @@ fn run() -> Result<(), String> {
 }
 
 /// The scenario of a case: where its inputs come from.
-fn scenario(shape: &Shape, setup: &Setup, steps: usize) -> Result<Recorder, String> {
+fn scenario(shape: &Shape, setup: &Setup, steps: usize) -> Result<Box<dyn Recording>, String> {
     match shape.name {
-        "nlo" | "ao" => Ok(Recorder::open_loop(shape, estimator_inputs(setup, steps))),
-        // The drive: a closed loop with pmsm-plant, whose `Io::input` reads the plant and
-        // whose `Io::output` applies the duties.
+        "nlo" | "ao" => Ok(Box::new(Recorder::open_loop(
+            shape,
+            estimator_inputs(setup, steps),
+        ))),
+        "drive" => Ok(Box::new(DriveLoop::new(steps)?)),
         other => Err(format!(
             "no scenario for case {other}: add one in host/src/main.rs"
         )),
+    }
+}
+
+/// A scenario's [`Io`] that keeps every step's words.
+trait Recording: Io {
+    /// Input and output words of every step so far, in order.
+    fn words(&self) -> &[i32];
+    /// One line on the run (errors at the last step).
+    fn summary(&self, setup: &Setup) -> String;
+}
+
+impl Recording for Recorder {
+    fn words(&self) -> &[i32] {
+        &self.words
+    }
+    fn summary(&self, setup: &Setup) -> String {
+        Recorder::summary(self, setup)
+    }
+}
+
+/// The drive case in a closed loop with `pmsm-plant`: motor B from standstill at θ = 137°
+/// (as `examples/b-800rpm-load.toml`), switching-level inverter with 2 µs dead time, 12-bit
+/// ADC, the default d-axis saturation. The drive detects the initial position (about 0.1 s),
+/// then the speed reference ramps toward 800 r/min at 4000 r/min/s and a 2 N·m load steps on
+/// at 0.15 s. `Io::input` samples the plant, `Io::output` applies the duties for a period.
+struct DriveLoop {
+    plant: pmsm_plant::Plant,
+    base: PerUnit,
+    sample: Option<pmsm_plant::Sample>,
+    /// First step in `Run` (when the ramp starts).
+    run_from: Option<usize>,
+    steps: usize,
+    inputs: usize,
+    words: Vec<i32>,
+    last_theta_e: f64,
+}
+
+/// Electrical angle at which the drive case's rotor rests, rad.
+const DRIVE_THETA0_RAD: f64 = 137.0 * PI / 180.0;
+
+impl DriveLoop {
+    fn new(steps: usize) -> Result<Self, String> {
+        let b = Setup::motor_b().map_err(|e| format!("motor B set-up: {e}"))?;
+        let model = pmsm_plant::MotorModel::new(b.motor);
+        let motor = pmsm_plant::Motor::new(model, DRIVE_THETA0_RAD, 0.0)
+            .map_err(|e| format!("motor B: {e}"))?;
+        let inverter =
+            pmsm_plant::InverterModel::new(b.inverter, pmsm_plant::InverterKind::Switching);
+        let adc = pmsm_plant::AdcParams::from_inverter(&b.inverter);
+        let plant =
+            pmsm_plant::Plant::new(motor, inverter, adc).map_err(|e| format!("plant: {e}"))?;
+        Ok(Self {
+            plant,
+            base: b.base,
+            sample: None,
+            run_from: None,
+            steps,
+            inputs: shape_of("drive")?.inputs,
+            words: Vec::new(),
+            last_theta_e: DRIVE_THETA0_RAD,
+        })
+    }
+
+    /// Speed reference at `step`, electrical rad/s.
+    fn speed_ref_rad_s(&self, step: usize) -> f64 {
+        let Some(k0) = self.run_from else {
+            return 0.0;
+        };
+        let t = (step.saturating_sub(k0)) as f64 / DRIVE_SAMPLE_HZ;
+        let rpm = (4000.0 * t).min(800.0);
+        rpm * 2.0 * PI / 60.0 * self.plant.motor().model().params.p()
+    }
+
+    /// Load torque at `step`, N·m.
+    fn load_nm(step: usize) -> f64 {
+        if step as f64 / DRIVE_SAMPLE_HZ >= 0.15 {
+            2.0
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The shape of the case called `name`.
+fn shape_of(name: &str) -> Result<&'static Shape, String> {
+    CASES
+        .iter()
+        .find(|s| s.name == name)
+        .ok_or_else(|| format!("no case {name}"))
+}
+
+impl Io for DriveLoop {
+    fn input(&mut self, step: usize, input: &mut [i32]) -> bool {
+        if step >= self.steps {
+            return false;
+        }
+        let (i, vdc) = match &self.sample {
+            Some(s) => (s.i_abc_a_measured, s.vdc_v),
+            None => ([0.0; 3], self.plant.vdc_v()),
+        };
+        let b = &self.base;
+        let x = DriveInput {
+            i_abc: Abc {
+                a: b.current_pu(i[0]),
+                b: b.current_pu(i[1]),
+                c: b.current_pu(i[2]),
+            },
+            vdc: b.voltage_pu(vdc),
+        };
+        let speed_ref = b.speed_pu(self.speed_ref_rad_s(step));
+        cases::drive_input_words(&x, speed_ref, input);
+        self.words.extend_from_slice(input);
+        true
+    }
+
+    fn output(&mut self, step: usize, output: &[i32]) -> bool {
+        self.words.extend_from_slice(output);
+        if self.run_from.is_none() && output[cases::DRIVE_STATE_WORD] == cases::STATE_RUN {
+            self.run_from = Some(step + 1);
+        }
+        self.last_theta_e = self.plant.motor().state().theta_e_rad;
+        let duty = |j: usize| output[j] as f64 / (1u64 << 30) as f64;
+        let load = Self::load_nm(step);
+        let sample = if output[3] != 0 {
+            self.plant.step_pwm([duty(0), duty(1), duty(2)], load)
+        } else {
+            self.plant.step_off(load)
+        };
+        match sample {
+            Ok(s) => {
+                self.sample = Some(s);
+                true
+            }
+            Err(e) => {
+                eprintln!("pil-record: drive: the plant failed at step {step}: {e}");
+                false
+            }
+        }
+    }
+}
+
+impl Recording for DriveLoop {
+    fn words(&self) -> &[i32] {
+        &self.words
+    }
+    fn summary(&self, _setup: &Setup) -> String {
+        let n = self.inputs + cases::DriveCase::OUTPUTS;
+        let Some(last) = self.words.rchunks(n).next() else {
+            return String::new();
+        };
+        let o = &last[self.inputs..];
+        let theta_est = Angle(o[4]).to_rad();
+        let d = theta_est - self.last_theta_e;
+        let d = (d + PI).rem_euclid(2.0 * PI) - PI;
+        let s = self.plant.motor().state();
+        format!(
+            "run from step {}, last step: state {}, speed {:.1} r/min (estimate {:.1}), angle error {:+.3}°",
+            self.run_from.map_or(-1, |k| k as i64),
+            o[cases::DRIVE_STATE_WORD],
+            s.omega_m_rad_s * 60.0 / (2.0 * PI),
+            self.base.speed_rad_s(Pu::from_bits(o[5])) * 60.0
+                / (2.0 * PI)
+                / self.plant.motor().model().params.p(),
+            d.to_degrees()
+        )
     }
 }
 

@@ -8,8 +8,9 @@
 //! host then records it on a scenario of its own (an open-loop trajectory, or the plant in a
 //! closed loop through [`Io::output`]).
 
-use pmsm_core::observer::{Ao, Estimate, Estimator, Nlo, ObserverInput};
-use pmsm_core::{AlphaBeta, Angle, ConfigError, Pu};
+use pmsm_core::drive::{Drive, DriveInput, DriveState, StartupMode};
+use pmsm_core::observer::{Ao, Estimate, Estimator, EstimatorKind, Nlo, ObserverInput};
+use pmsm_core::{Abc, AlphaBeta, Angle, ConfigError, Pu};
 
 use crate::setup::Setup;
 
@@ -169,6 +170,91 @@ impl Case for AoCase {
     }
 }
 
+/// Drive input from 5 words: `i_a, i_b, i_c, v_dc, ω*` (Q8.24 bits); returns the input and
+/// the speed reference.
+pub fn drive_input(w: &[i32]) -> (DriveInput, Pu) {
+    let pu = |j| Pu::from_bits(word(w, j));
+    (
+        DriveInput {
+            i_abc: Abc {
+                a: pu(0),
+                b: pu(1),
+                c: pu(2),
+            },
+            vdc: pu(3),
+        },
+        pu(4),
+    )
+}
+
+/// The 5 words of a drive input and speed reference (inverse of [`drive_input`]).
+pub fn drive_input_words(x: &DriveInput, speed_ref: Pu, w: &mut [i32]) {
+    set_word(w, 0, x.i_abc.a.to_bits());
+    set_word(w, 1, x.i_abc.b.to_bits());
+    set_word(w, 2, x.i_abc.c.to_bits());
+    set_word(w, 3, x.vdc.to_bits());
+    set_word(w, 4, speed_ref.to_bits());
+}
+
+/// Code of a [`DriveState`] in the recording: idle 0, IPD 1, align 2, open loop 3, run 4,
+/// fault 5.
+pub fn state_code(s: DriveState) -> i32 {
+    match s {
+        DriveState::Idle => 0,
+        DriveState::Ipd => 1,
+        DriveState::Align => 2,
+        DriveState::OpenLoop => 3,
+        DriveState::Run => 4,
+        DriveState::Fault(_) => 5,
+    }
+}
+
+/// [`state_code`] of [`DriveState::Run`].
+pub const STATE_RUN: i32 = 4;
+
+/// Output word of the drive case holding the state after the step.
+pub const DRIVE_STATE_WORD: usize = 6;
+
+/// The seed-001 sensorless drive (`Drive::step`) on motor B at 14 kHz with the current-model
+/// MRAS, started by initial position detection ([`Setup::drive`]).
+///
+/// Inputs (5 words): `i_a, i_b, i_c, v_dc, ω*` (Q8.24). Outputs (7 words): duties `a, b, c`
+/// (Q2.30), `pwm_on` (0/1), `θ̂` (turn), `ω̂` (Q8.24), the state after the step
+/// ([`state_code`]).
+pub struct DriveCase(pub Drive);
+
+impl DriveCase {
+    /// The drive of the case, started (in `Ipd`).
+    pub fn drive() -> Result<Drive, ConfigError> {
+        let b = Setup::motor_b()?;
+        let mut d = Drive::new(b.drive(EstimatorKind::MrasCurrent, StartupMode::Ipd)?);
+        d.start();
+        Ok(d)
+    }
+}
+
+impl Case for DriveCase {
+    const NAME: &'static str = "drive";
+    const INPUTS: usize = 5;
+    const OUTPUTS: usize = 7;
+    fn new(_setup: &Setup) -> Result<Self, ConfigError> {
+        Ok(Self(Self::drive()?))
+    }
+    fn step(&mut self, input: &[i32], o: &mut [i32]) {
+        let (x, speed_ref) = drive_input(input);
+        self.0.set_speed_ref(speed_ref);
+        let out = self.0.step(&x);
+        set_word(o, 0, out.duties.a.to_bits());
+        set_word(o, 1, out.duties.b.to_bits());
+        set_word(o, 2, out.duties.c.to_bits());
+        set_word(o, 3, i32::from(out.pwm_on));
+        let e = self.0.telemetry().estimate;
+        set_word(o, 4, e.theta.0);
+        set_word(o, 5, e.omega.to_bits());
+        set_word(o, DRIVE_STATE_WORD, state_code(self.0.state()));
+    }
+}
+
 /// Declares the list of cases: [`CASES`] and [`run_named`].
 macro_rules! cases {
     ($($case:ty),* $(,)?) => {
@@ -191,8 +277,7 @@ macro_rules! cases {
     };
 }
 
-// The drive goes here (`DriveCase`, with its inputs and outputs as words).
-cases!(NloCase, AoCase);
+cases!(NloCase, AoCase, DriveCase);
 
 #[cfg(test)]
 mod tests {

@@ -1,6 +1,7 @@
 //! Motor A of `docs/scenarios.md` (seed 000) on a 300 V bus, sampled at 20 kHz.
 
-use pmsm_core::observer::{AoConfig, MrasEmfConfig, NloConfig};
+use pmsm_core::drive::{DriveConfig, DriveDesign, StartupMode};
+use pmsm_core::observer::{AoConfig, EstimatorKind, MrasEmfConfig, NloConfig};
 use pmsm_core::{ConfigError, InverterParams, MotorParams, PerUnit};
 
 /// Control sample rate, Hz.
@@ -66,5 +67,59 @@ impl Setup {
     /// Tomita's MRAS with the paper's constants on an AO of gain [`OBSERVER_GAIN_RAD_S`].
     pub fn mras_emf(&self) -> Result<MrasEmfConfig, ConfigError> {
         MrasEmfConfig::paper(&self.motor, &self.base, OBSERVER_GAIN_RAD_S)
+    }
+}
+
+/// Control sample rate of the drive runs (motor B, seed 001): the 14 kHz PWM, Hz.
+pub const DRIVE_SAMPLE_HZ: f64 = 14e3;
+
+/// Motor B of seed 001 (interior PMSM, 1.1 kW): p = 3, R = 7.2 Ω, L_d = 25.025 mH,
+/// L_q = 40.17 mH, ψ = 0.305 Wb, J = 0.0036 kg·m², B = 0.0011 N·m·s, rated 2.53 A, 3000 r/min
+/// (`examples/motor-b.toml`).
+pub fn motor_b() -> MotorParams {
+    let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
+    m.rated_current_a = Some(2.53);
+    m.rated_speed_rpm = Some(3000.0);
+    m
+}
+
+/// The inverter of seed 001: 540 V bus, 14 kHz SVPWM, 2 µs dead time; current full scale
+/// 4 `I_b` (as `pmsm simulate` defaults it).
+pub fn inverter_b() -> Result<InverterParams, ConfigError> {
+    let mut inv = InverterParams {
+        vdc_v: 540.0,
+        pwm_hz: DRIVE_SAMPLE_HZ,
+        dead_time_s: 2e-6,
+        current_full_scale_a: 1.0,
+    };
+    let base = PerUnit::new(&motor_b(), &inv, DRIVE_SAMPLE_HZ)?;
+    inv.current_full_scale_a = 4.0 * base.current_a;
+    Ok(inv)
+}
+
+impl Setup {
+    /// Motor B at 14 kHz on 540 V (the drive runs).
+    pub fn motor_b() -> Result<Self, ConfigError> {
+        let motor = motor_b();
+        let inverter = inverter_b()?;
+        let base = PerUnit::new(&motor, &inverter, DRIVE_SAMPLE_HZ)?;
+        Ok(Self {
+            motor,
+            inverter,
+            base,
+        })
+    }
+
+    /// The seed-001 drive of `pmsm simulate` (every default of
+    /// [`DriveDesign::default_for`]) with `estimator` and `startup`.
+    pub fn drive(
+        &self,
+        estimator: EstimatorKind,
+        startup: StartupMode,
+    ) -> Result<DriveConfig, ConfigError> {
+        let mut design =
+            DriveDesign::default_for(&self.motor, &self.inverter, &self.base, estimator);
+        design.startup = startup;
+        DriveConfig::new(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ, design)
     }
 }
