@@ -6,6 +6,7 @@
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 
 mod accuracy;
+mod cffi;
 mod examples;
 mod pil;
 mod plant_speed;
@@ -53,6 +54,8 @@ fn perf() -> Result<()> {
     doc.push_str(&seed001::section()?);
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
+    eprintln!("measuring the C library (scripts/c-firmware.sh) ...");
+    doc.push_str(&cffi::section());
     eprintln!("measuring the speed of the plant model ...");
     doc.push_str(&plant_speed::section()?);
     let path = root().join("docs/PERFORMANCE.md");

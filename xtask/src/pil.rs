@@ -47,5 +47,20 @@ pub fn section() -> String {
         ));
     }
     s.push_str(&format!("\nReplay: {}.\n\n", replay.join("; ")));
+    if let Some(v) = table.get("drive_step") {
+        let over = |x: &str, budget: u32| {
+            x.parse::<u32>().map_or("?".to_owned(), |n| {
+                format!(
+                    "{n} (budget {budget}: {})",
+                    if n <= budget { "met" } else { "NOT met" }
+                )
+            })
+        };
+        s.push_str(&format!(
+            "Full drive step, current-model MRAS, worst case: Cortex-M4 {}, Cortex-M0 {}.\n\n",
+            over(&v[1], 1500),
+            over(&v[3], 4000)
+        ));
+    }
     s
 }
