@@ -4,6 +4,8 @@
 //!   fixed-point numerics against f64, speed of the plant model).
 //! - `cargo xtask figures`: regenerates the paper figures under `docs/figures/`.
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
+//! - `cargo xtask sweep [N]`: N random healthy scenarios (default 200), none may fault.
+//! - `cargo xtask robustness`: prints the parameter-error table of `docs/PERFORMANCE.md`.
 
 mod accuracy;
 mod cffi;
@@ -12,6 +14,7 @@ mod pil;
 mod plant_speed;
 mod seed000;
 mod seed001;
+mod sweep;
 
 use anyhow::{Result, bail};
 use std::path::PathBuf;
@@ -35,7 +38,18 @@ fn main() -> Result<()> {
             );
             Ok(())
         }
-        _ => bail!("usage: cargo xtask perf | figures | examples"),
+        "sweep" => {
+            let n = std::env::args()
+                .nth(2)
+                .and_then(|x| x.parse().ok())
+                .unwrap_or(200);
+            sweep::run(n)
+        }
+        "robustness" => {
+            print!("{}", seed001::robustness_section()?);
+            Ok(())
+        }
+        _ => bail!("usage: cargo xtask perf | figures | examples | robustness | sweep [N]"),
     }
 }
 
@@ -52,6 +66,8 @@ fn perf() -> Result<()> {
     doc.push_str(&seed000::section());
     eprintln!("running the seed-001 drive ...");
     doc.push_str(&seed001::section()?);
+    eprintln!("robustness to parameter errors ...");
+    doc.push_str(&seed001::robustness_section()?);
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the C library (scripts/c-firmware.sh) ...");

@@ -246,6 +246,12 @@ pub struct Control {
     pub mras_bandwidth_hz: Option<f64>,
     /// Current limit, A peak (default: twice rated peak).
     pub current_limit_a: Option<f64>,
+    /// The drive's model of the motor is off the plant's: its resistance times this.
+    pub model_rs_factor: Option<f64>,
+    /// Its inductances times this.
+    pub model_l_factor: Option<f64>,
+    /// Its magnet flux times this.
+    pub model_flux_factor: Option<f64>,
 }
 
 /// Where dead-time compensation applies (`deadtime_compensation`).
@@ -457,6 +463,9 @@ pub fn read(path: &Path) -> Result<Scenario> {
             ("control.speed_bandwidth_hz", raw.control.speed_bandwidth_hz),
             ("control.mras_bandwidth_hz", raw.control.mras_bandwidth_hz),
             ("control.current_limit_a", raw.control.current_limit_a),
+            ("control.model_rs_factor", raw.control.model_rs_factor),
+            ("control.model_l_factor", raw.control.model_l_factor),
+            ("control.model_flux_factor", raw.control.model_flux_factor),
         ] {
             if let Some(v) = v {
                 positive(key, v)?;

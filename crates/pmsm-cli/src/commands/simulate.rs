@@ -114,7 +114,14 @@ pub struct Run {
 /// Builds the drive and the plant of `sc` and runs them.
 pub fn run_scenario(sc: &Scenario) -> Result<Run> {
     let shown = sc.path.display();
-    let m = &sc.motor.model.params;
+    // The drive's model of the motor; the plant keeps the true one.
+    let mut model = sc.motor.model.params;
+    model.rs_ohm *= sc.control.model_rs_factor.unwrap_or(1.0);
+    model.ld_h *= sc.control.model_l_factor.unwrap_or(1.0);
+    model.lq_h *= sc.control.model_l_factor.unwrap_or(1.0);
+    model.flux_wb *= sc.control.model_flux_factor.unwrap_or(1.0);
+    model.kt_nm_per_a *= sc.control.model_flux_factor.unwrap_or(1.0);
+    let m = &model;
     let pwm_hz = sc.inverter.pwm_hz;
     let sample_hz = sc.control.sample_hz.unwrap_or(pwm_hz);
     let ratio = pwm_hz / sample_hz;
