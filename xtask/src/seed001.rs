@@ -215,7 +215,6 @@ pub fn section() -> Result<String> {
 /// half the rated speed and rated load: which combinations keep the lock.
 pub fn robustness_section() -> Result<String> {
     let base = std::fs::read_to_string(super::root().join("examples/b-800rpm-load.toml"))?
-        .replace("duration_s = 2.0", "duration_s = 2.0")
         .replace("rpm = [0.0, 0.0, 800.0]", "rpm = [0.0, 0.0, 1500.0]")
         .replace(
             "nm = [0.0, 0.0, 4.0, 4.0, 0.0]",
