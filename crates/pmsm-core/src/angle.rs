@@ -16,7 +16,7 @@
 //! Measured error against f64 over the whole input range: see `docs/PERFORMANCE.md`; the
 //! tests bound it at 3 LSB of Q2.30 (2.8e−9).
 
-use crate::num::{UNIT_FRAC, Unit, round_shift_sat};
+use crate::num::{UNIT_FRAC, Unit, round_shift_sat, wmul_inline};
 use core::ops::{Add, Neg, Sub};
 
 /// Electrical angle, one turn = 2³² (LSB = 2π/2³² ≈ 1.46e−9 rad), range [−π, π), wrapping.
@@ -178,16 +178,19 @@ pub fn sin_cos(angle: Angle) -> SinCos {
         2 => (-s0, -c0),
         _ => (-c0, s0),
     };
-    // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2; |δ| ≤ π/1024.
-    let delta = round_shift_sat(rem as i64 * HALF_PI_Q30, UNIT_FRAC) as i64; // |δ| ≤ π/1024
-    let d2 = (delta * delta) >> UNIT_FRAC; // δ², Q2.30
-    const SIXTH_Q30: i64 = 178_956_971; // 1/6 in Q2.30
-    let d3_6 = (((d2 * delta) >> UNIT_FRAC) * SIXTH_Q30) >> UNIT_FRAC;
+    // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2; |δ| ≤ π/1024. Every product
+    // below has two operands within i32 (table values ≤ 2^30, |δ| < 2^22): `wmul` forms it.
+    let delta = round_shift_sat(wmul_inline(rem, HALF_PI_Q30 as i32), UNIT_FRAC); // |δ| ≤ π/1024
+    let d2 = (wmul_inline(delta, delta) >> UNIT_FRAC) as i32; // δ², Q2.30
+    const SIXTH_Q30: i32 = 178_956_971; // 1/6 in Q2.30
+    let d3 = (wmul_inline(d2, delta) >> UNIT_FRAC) as i32;
+    let d3_6 = (wmul_inline(d3, SIXTH_Q30) >> UNIT_FRAC) as i32;
     let sin_d = delta - d3_6;
-    let cos_d = (1i64 << UNIT_FRAC) - (d2 >> 1);
+    let cos_d = (1i32 << UNIT_FRAC) - (d2 >> 1);
+    let (s_a, c_a) = (s_a as i32, c_a as i32);
     // sin(a+δ) = sin a cos δ + cos a sin δ; cos(a+δ) = cos a cos δ − sin a sin δ.
-    let sin = round_shift_sat(s_a * cos_d + c_a * sin_d, UNIT_FRAC);
-    let cos = round_shift_sat(c_a * cos_d - s_a * sin_d, UNIT_FRAC);
+    let sin = round_shift_sat(wmul_inline(s_a, cos_d) + wmul_inline(c_a, sin_d), UNIT_FRAC);
+    let cos = round_shift_sat(wmul_inline(c_a, cos_d) - wmul_inline(s_a, sin_d), UNIT_FRAC);
     SinCos {
         sin: Unit::from_bits(sin),
         cos: Unit::from_bits(cos),

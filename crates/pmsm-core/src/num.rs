@@ -48,28 +48,80 @@ pub const fn sat_i32(x: i64) -> i32 {
     }
 }
 
+/// `a · b` as the exact 64-bit product of two `i32`.
+///
+/// On cores with a 32×32→64 multiply (Cortex-M3/M4, x86) this is `a as i64 * b as i64`, one
+/// `SMULL`. ARMv6-M (Cortex-M0/M0+) has only the 32×32→32 `MULS`, and the compiler turns an
+/// `i64` product into a call to the general 64×64 `__aeabi_lmul`; there the product is built
+/// from four 16×16 partial products, about half the instructions. Both give the same
+/// bits (exact integer arithmetic; checked against the `i64` product in the tests). ARMv6-M
+/// is recognised as the ARM architecture without 32-bit compare-and-swap atomics (Rust sets
+/// no `target_feature` that tells the Thumb-1-only cores apart).
+#[inline(always)]
+pub fn wmul(a: i32, b: i32) -> i64 {
+    #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+    {
+        wmul_v6m(a, b)
+    }
+    #[cfg(not(all(target_arch = "arm", not(target_has_atomic = "32"))))]
+    {
+        a as i64 * b as i64
+    }
+}
+
+/// [`wmul_halves`] out of line: the micro:bit's flash is nearly full, and a call costs a few
+/// instructions against the 20-odd of the product.
+#[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+#[inline(never)]
+fn wmul_v6m(a: i32, b: i32) -> i64 {
+    wmul_halves(a, b)
+}
+
+/// `a · b` from 16-bit halves: `a = a_h 2¹⁶ + a_l` with `a_h` signed, `a_l` unsigned. Each
+/// partial product fits its 32-bit type: `a_l b_l < 2³²` unsigned, `|a_h b_l| < 2³¹`,
+/// `a_h b_h ≤ 2³⁰`.
+#[inline(always)]
+#[allow(dead_code)] // used on ARMv6-M only, and by the tests
+const fn wmul_halves(a: i32, b: i32) -> i64 {
+    let (al, ah) = ((a as u32) & 0xffff, a >> 16);
+    let (bl, bh) = ((b as u32) & 0xffff, b >> 16);
+    let ll = al * bl;
+    let hh = ah * bh;
+    let mid = (ah * bl as i32) as i64 + (al as i32 * bh) as i64;
+    ((hh as i64) << 32) + (mid << 16) + ll as i64
+}
+
+/// [`wmul`], inlined on every core (the halves on ARMv6-M): for the few kernels called most
+/// often per sample (sin/cos, Park), where the call is worth saving; elsewhere [`wmul`] keeps
+/// the micro:bit's nearly full flash in budget.
+#[inline(always)]
+pub fn wmul_inline(a: i32, b: i32) -> i64 {
+    #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+    {
+        wmul_halves(a, b)
+    }
+    #[cfg(not(all(target_arch = "arm", not(target_has_atomic = "32"))))]
+    {
+        a as i64 * b as i64
+    }
+}
+
 /// `a · b` for two [`Pu`] values, rounded to nearest and saturated.
 #[inline(always)]
 pub fn mul(a: Pu, b: Pu) -> Pu {
-    Pu::from_bits(round_shift_sat(
-        a.to_bits() as i64 * b.to_bits() as i64,
-        PU_FRAC,
-    ))
+    Pu::from_bits(round_shift_sat(wmul(a.to_bits(), b.to_bits()), PU_FRAC))
 }
 
 /// `a · u` for a [`Pu`] signal and a [`Unit`] factor, rounded to nearest and saturated.
 #[inline(always)]
 pub fn mul_unit(a: Pu, u: Unit) -> Pu {
-    Pu::from_bits(round_shift_sat(
-        a.to_bits() as i64 * u.to_bits() as i64,
-        UNIT_FRAC,
-    ))
+    Pu::from_bits(round_shift_sat(wmul(a.to_bits(), u.to_bits()), UNIT_FRAC))
 }
 
 /// `a · u + b · v` with a single rounding, saturated (the kernel of Park's rotation).
 #[inline(always)]
 pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
-    let acc = a.to_bits() as i64 * u.to_bits() as i64 + b.to_bits() as i64 * v.to_bits() as i64;
+    let acc = wmul_inline(a.to_bits(), u.to_bits()) + wmul_inline(b.to_bits(), v.to_bits());
     Pu::from_bits(round_shift_sat(acc, UNIT_FRAC))
 }
 
@@ -143,7 +195,7 @@ impl Gain {
     /// `gain · x` for a signal in any Q format, in the same format; rounded, saturated.
     #[inline(always)]
     pub fn apply_bits(self, x: i32) -> i32 {
-        round_shift_sat(x as i64 * self.mantissa as i64, self.shift)
+        round_shift_sat(wmul(x, self.mantissa), self.shift)
     }
 
     /// `gain · x` for a [`Pu`] signal, rounded to nearest and saturated.
@@ -224,6 +276,13 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn wide_multiply_from_halves_is_exact(a in any::<i32>(), b in any::<i32>()) {
+            prop_assert_eq!(wmul_halves(a, b), a as i64 * b as i64);
+            prop_assert_eq!(wmul(a, b), a as i64 * b as i64);
+            prop_assert_eq!(wmul_inline(a, b), a as i64 * b as i64);
+        }
+
         #[test]
         fn gain_within_half_lsb_plus_relative(v in -1e4f64..1e4, x in any::<i32>()) {
             let g = Gain::new(v).unwrap();

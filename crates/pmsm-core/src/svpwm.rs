@@ -29,7 +29,7 @@
 //! |---|---|---|
 //! | `v`, `v_dc` | [`Pu`] Q8.24 of `V_b = V_DC,nom/√3` | `v_dc` = √3 at the nominal bus |
 //! | duties | [`Unit`] Q2.30 | [0, 1] (clamped; 1 LSB = 9.3e−10 of the period) |
-//! | `1/v_dc` | Q.30 in `i64` | one `i64` division per call |
+//! | `1/v_dc` | Q.30 in `i64` | one `i64` division per new bus reading ([`BusReciprocal`]) |
 //!
 //! Accuracy: the average voltage rebuilt from the duties matches an f64 model within 1 LSB of
 //! [`Pu`] in the linear range (measured 0.65) and 4 LSB on the circle (measured 1.7), tests in
@@ -95,8 +95,16 @@ impl SvpwmConfig {
     }
 
     /// Duties for the stationary voltage `v` on the bus `vdc` (both per unit of `V_b`).
-    /// Integer only; never panics.
+    /// Integer only; never panics. Divides by the bus at every call; a caller that modulates
+    /// every sample keeps a [`BusReciprocal`] and calls [`SvpwmConfig::modulate_cached`].
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
+        self.modulate_cached(v, vdc, &mut BusReciprocal::default())
+    }
+
+    /// [`SvpwmConfig::modulate`], bit for bit, with `1/v_dc` taken from `cache` when the bus
+    /// reading is the one it was computed for (the `i64` division is most of the cost of a
+    /// call) and recomputed and stored otherwise.
+    pub fn modulate_cached(&self, v: AlphaBeta, vdc: Pu, cache: &mut BusReciprocal) -> SvpwmOutput {
         if vdc <= self.vdc_min {
             return SvpwmOutput {
                 duties: Duties::HALF,
@@ -105,6 +113,7 @@ impl SvpwmConfig {
                 bus_low: true,
             };
         }
+        let inv = cache.get(vdc);
         let v_max = self.v_max(vdc);
         let (v, saturated) = if clearly_inside(v, v_max) {
             // Far inside the circle: the CORDIC test of `limit` would find the same, so the
@@ -123,10 +132,6 @@ impl SvpwmConfig {
         let lo = a.min(b).min(c);
         // 2 (v_x + v_0) = 2 v_x − (max + min): exact in Q8.25.
         let off = hi + lo;
-        // 1/v_dc in Q.30: v_dc ≥ vdc_min > 0 here, so the quotient is at most 2^54/2^16.
-        let inv = (1i64 << (PU_FRAC + UNIT_FRAC))
-            .checked_div(vdc.to_bits() as i64)
-            .unwrap_or(0);
         // d = ½ + (2 v_x − off)/2 · inv: Q8.25 · Q.30 = Q.55 → Q2.30 (shift 25).
         let duty = |x: i64| -> Unit {
             let num = (2 * x - off) * inv; // |2x − off| ≤ 2^33, inv ≤ 2^38: below 2^63 after the
@@ -144,6 +149,31 @@ impl SvpwmConfig {
             saturated,
             bus_low: false,
         }
+    }
+}
+
+/// `1/v_dc` in Q.30 (`⌊2⁵⁴/v_dc⌋` of the bits) for the last bus reading seen: one `i64`
+/// division per change of the reading instead of one per call (the result is the same bits).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BusReciprocal {
+    /// The bus reading (bits of [`Pu`]) `inv` belongs to; 0 when empty (never a valid bus).
+    vdc: i32,
+    inv: i64,
+}
+
+impl BusReciprocal {
+    /// `⌊2⁵⁴/v_dc⌋` for a bus `vdc > 0`: from the cache when `vdc` is the last reading, else
+    /// divided and stored (0 for `vdc ≤ 0`, which the modulator never passes).
+    #[inline]
+    pub fn get(&mut self, vdc: Pu) -> i64 {
+        let bits = vdc.to_bits();
+        if bits != self.vdc || bits == 0 {
+            self.inv = (1i64 << (PU_FRAC + UNIT_FRAC))
+                .checked_div(bits as i64)
+                .unwrap_or(0);
+            self.vdc = bits;
+        }
+        self.inv
     }
 }
 

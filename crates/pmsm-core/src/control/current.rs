@@ -234,10 +234,22 @@ impl CurrentController {
         let d = self
             .pi_d
             .step(e_d, ff_d, Limits::symmetric(v_max), input.hold);
-        let room = circle_room(v_max, d.u);
-        let q = self
-            .pi_q
-            .step(e_q, ff_q, Limits::symmetric(room), input.hold);
+        // The q limit is the room left on the circle, √(V_max² − v_d²) (a square root). It
+        // is at least V_max − |v_d| (as (V_max − |v_d|)² ≤ V_max² − v_d²), and when the q PI
+        // stays strictly inside that bound its step is the same for the exact limit (see
+        // `Pi::step_inside`): the root is taken only when the q axis comes near the circle.
+        let saved = self.pi_q;
+        let lower = v_max.saturating_sub(d.u.saturating_abs()).max(Pu::ZERO);
+        let (mut q, inside) =
+            self.pi_q
+                .step_inside(e_q, ff_q, Limits::symmetric(lower), input.hold);
+        if !inside {
+            self.pi_q = saved;
+            let room = circle_room(v_max, d.u);
+            q = self
+                .pi_q
+                .step(e_q, ff_q, Limits::symmetric(room), input.hold);
+        }
         CurrentOutput {
             v: Dq { d: d.u, q: q.u },
             v_max,

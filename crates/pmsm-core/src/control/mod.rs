@@ -19,7 +19,7 @@ pub use pi::{Limits, Pi, PiConfig, PiOutput};
 pub use speed::{SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};
 
 use crate::error::ConfigError;
-use crate::num::{PU_FRAC, Pu, sat_i32};
+use crate::num::{PU_FRAC, Pu, sat_i32, wmul};
 
 /// Fractional bits of the wide accumulators (integrators): Q16.48 in `i64`, range ±32768,
 /// LSB 2⁻⁴⁸ ≈ 3.6e−15, i.e. 2²⁴ steps per LSB of [`Pu`].
@@ -81,7 +81,7 @@ impl WideGain {
     pub fn apply_wide(self, x: Pu) -> i64 {
         // |x · m| < 2^62. Its value is prod · 2^−(shift + 24), so in Q.48 it is
         // prod · 2^(24 − shift): a rounding right shift or a saturating left shift.
-        let prod = x.to_bits() as i64 * self.mantissa as i64;
+        let prod = wmul(x.to_bits(), self.mantissa);
         let out = if self.shift > EXTRA {
             // 1 ≤ s ≤ 45 for the accepted range; round half up like `round_shift_sat`.
             let s = self.shift - EXTRA;

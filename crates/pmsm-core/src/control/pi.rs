@@ -173,12 +173,23 @@ impl Pi {
     /// One step: error `e`, feed-forward `ff`, output limits, and `hold` (a later stage
     /// saturated: do not integrate outward). Integer only; never panics.
     pub fn step(&mut self, e: Pu, ff: Pu, limits: Limits, hold: bool) -> PiOutput {
+        self.step_inside(e, ff, limits, hold).0
+    }
+
+    /// [`Pi::step`], and whether no limit took part: the output before the clamp strictly
+    /// inside `(lo, hi)` both before and after the integration, and the integrator not clamped.
+    /// When it is true, the step (state and output) is bit for bit the same for any wider
+    /// limits, so a caller whose exact limit is costly can step with a cheap inner bound
+    /// first, and step again (from the saved state) with the exact limit only when this is
+    /// false.
+    pub fn step_inside(&mut self, e: Pu, ff: Pu, limits: Limits, hold: bool) -> (PiOutput, bool) {
         let (lo, hi) = limits.ordered();
         let (lo, hi) = (pu_to_wide(lo), pu_to_wide(hi));
         let ff = pu_to_wide(ff);
         let p = self.config.kp.apply_wide(e);
         // Each term is below 2^62 in magnitude; saturating adds keep the sums honest.
         let raw = ff.saturating_add(p).saturating_add(self.integ);
+        let raw_inside = lo < raw && raw < hi;
         let up = e > Pu::ZERO;
         let down = e < Pu::ZERO;
         let outward = hold && ((raw > 0 && up) || (raw < 0 && down));
@@ -204,14 +215,16 @@ impl Pi {
         // max/min rather than clamp: no assertion, hence no panic path, when i_lo > i_hi.
         self.integ = self.integ.max(i_lo).min(i_hi.max(i_lo));
         let raw = ff.saturating_add(p).saturating_add(self.integ);
-        PiOutput {
+        let inside = raw_inside && unclamped == self.integ && lo < raw && raw < hi;
+        let out = PiOutput {
             u: wide_to_pu(raw.max(lo).min(hi)),
             saturated: raw > hi
                 || raw < lo
                 || (raw == hi && up)
                 || (raw == lo && down)
                 || unclamped != self.integ,
-        }
+        };
+        (out, inside)
     }
 }
 

@@ -23,7 +23,7 @@ mod startup;
 
 pub use config::{DriveConfig, DriveDesign, OpenLoopDesign, Protection, StartupMode};
 
-use crate::angle::Angle;
+use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
 use crate::control::speed::SpeedController;
 use crate::deadtime::CurrentSource;
@@ -31,7 +31,7 @@ use crate::frames::{Abc, AlphaBeta, Dq, clarke, inverse_park, park};
 use crate::ipd::{Ipd, IpdFault, IpdResult};
 use crate::num::Pu;
 use crate::observer::{AnyEstimator, Estimate, Estimator, ObserverInput};
-use crate::svpwm::Duties;
+use crate::svpwm::{BusReciprocal, Duties};
 use startup::OpenLoop;
 
 /// Why the drive stopped switching. Latched until [`Drive::clear_fault`].
@@ -154,6 +154,8 @@ pub struct Drive {
     monitor: monitor::Monitor,
     /// The speed loop's current reference at the last sample.
     iq_ref: Pu,
+    /// `1/v_dc` of the last bus reading, for the modulator.
+    inv_vdc: BusReciprocal,
 }
 
 impl Drive {
@@ -174,6 +176,7 @@ impl Drive {
             ipd_result: None,
             monitor: monitor::Monitor::default(),
             iq_ref: Pu::ZERO,
+            inv_vdc: BusReciprocal::default(),
         }
     }
 
@@ -318,7 +321,7 @@ impl Drive {
                     self.state = self.rotor_found(Angle::ZERO);
                     self.telemetry.estimate = self.estimator.estimate();
                 }
-                self.control(i, input.vdc, theta, Pu::ZERO, i_ref)
+                self.control(i, input.vdc, theta, Pu::ZERO, i_ref, None)
             }
             DriveState::OpenLoop => {
                 let (theta, omega, i_ref) = self.open_loop.advance(&self.config);
@@ -332,12 +335,15 @@ impl Drive {
                         Err(fault) => return self.trip(fault),
                     }
                 }
-                self.control(i, input.vdc, theta, omega, i_ref)
+                self.control(i, input.vdc, theta, omega, i_ref, None)
             }
             DriveState::Run => {
                 let speed = self.speed.step(self.run_speed_ref(), self.speed_filtered);
                 self.iq_ref = speed.iq_ref;
                 let iq_ref = speed.iq_ref;
+                // The current-model MRAS already rotated this sample's current into the frame
+                // at θ̂ (same angle, same current, same bits): reuse its sin/cos and Park.
+                let frame = self.estimator.frame();
                 self.control(
                     i,
                     input.vdc,
@@ -347,6 +353,7 @@ impl Drive {
                         d: Pu::ZERO,
                         q: iq_ref,
                     },
+                    frame,
                 )
             }
             DriveState::Idle | DriveState::Fault(_) => OFF,
@@ -370,7 +377,8 @@ impl Drive {
     }
 
     /// Current loops in the frame at `theta` turning at `omega`, dead-time compensation and
-    /// modulation (seed 001 Fig. 1).
+    /// modulation (seed 001 Fig. 1). `frame`, when given, is `(theta.sin_cos(), park(i, ..))`
+    /// already computed by the estimator.
     fn control(
         &mut self,
         i: AlphaBeta,
@@ -378,10 +386,13 @@ impl Drive {
         theta: Angle,
         omega: Pu,
         i_ref: Dq,
+        frame: Option<(SinCos, Dq)>,
     ) -> DriveOutput {
         let c = &self.config;
-        let sc = theta.sin_cos();
-        let i_dq = park(i, sc);
+        let i_dq = match frame {
+            Some((_, i_dq)) => i_dq,
+            None => park(i, theta.sin_cos()),
+        };
         let out = self.current.step(&CurrentInput {
             i_ref,
             i: i_dq,
@@ -398,7 +409,9 @@ impl Drive {
             CurrentSource::Reference => inverse_park(i_ref, sc_mid),
         };
         let v_dt = c.deadtime.error_vector(i_dt, vdc);
-        let m = c.svpwm.modulate(c.deadtime.command(v_ref, v_dt), vdc);
+        let m = c
+            .svpwm
+            .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
         self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
         self.telemetry.theta = theta;
         self.telemetry.i_dq = i_dq;

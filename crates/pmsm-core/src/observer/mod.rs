@@ -162,6 +162,19 @@ impl AnyEstimator {
     }
 }
 
+impl AnyEstimator {
+    /// For the estimators that rotate the measured current into their own estimated frame
+    /// (the current-model MRAS): `sin_cos(θ̂)` of the last estimate and the measured current
+    /// of the last update in that frame, bit for bit what the caller would compute from
+    /// [`Estimate::theta`] and the same current. `None` for the others.
+    pub fn frame(&self) -> Option<(crate::angle::SinCos, crate::frames::Dq)> {
+        match self {
+            AnyEstimator::MrasCurrent(e) => Some(e.frame()),
+            _ => None,
+        }
+    }
+}
+
 impl Estimator for AnyEstimator {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
         match self {

@@ -282,6 +282,8 @@ pub struct MrasCurrent {
     theta: u64,
     /// sin/cos of the angle of the last update (the frame of `i_hat`).
     sc: SinCos,
+    /// The measured current of the last update in that frame (`park(i, sc)`).
+    i_dq: Dq,
     pi: Pi,
     /// Adaptation signal ξ' of the last update.
     xi: Pu,
@@ -301,6 +303,7 @@ impl MrasCurrent {
             i_hat: Dq::default(),
             theta: 0,
             sc: Angle::ZERO.sin_cos(),
+            i_dq: Dq::default(),
             xi: Pu::ZERO,
             i_load: Pu::ZERO,
             seed: true,
@@ -323,6 +326,14 @@ impl MrasCurrent {
     /// The adjustable model's current `î` in the estimated frame.
     pub fn model_current(&self) -> Dq {
         self.i_hat
+    }
+
+    /// The frame of the last estimate: `sin_cos(θ̂)` of [`Estimator::estimate`]'s angle (bit for
+    /// bit what `estimate().theta.sin_cos()` gives) and the measured current of the last
+    /// update rotated into it (bit for bit `park(i, sin_cos(θ̂))`; zero after a reset). The
+    /// drive reuses both instead of computing them again.
+    pub fn frame(&self) -> (SinCos, Dq) {
+        (self.sc, self.i_dq)
     }
 
     /// `î ← a î + g v`, one R–L half step.
@@ -385,6 +396,7 @@ impl Estimator for MrasCurrent {
         let sc = self.angle().sin_cos();
         self.sc = sc;
         let i = park(input.i, sc);
+        self.i_dq = i;
         if self.seed {
             // After a reset the model starts from the measured current: no error to adapt on.
             self.seed = false;
@@ -429,6 +441,7 @@ impl Estimator for MrasCurrent {
         let omega = omega.max(-self.config.omega_max).min(self.config.omega_max);
         self.theta = (theta.0 as u32 as u64) << 32;
         self.sc = theta.sin_cos();
+        self.i_dq = Dq::default();
         self.pi.reset(omega);
         self.i_hat = Dq::default();
         self.xi = Pu::ZERO;
