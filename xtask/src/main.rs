@@ -8,6 +8,7 @@
 //! - `cargo xtask robustness`: prints the parameter-error table of `docs/PERFORMANCE.md`.
 
 mod accuracy;
+mod board;
 mod cffi;
 mod examples;
 mod pil;
@@ -70,6 +71,8 @@ fn perf() -> Result<()> {
     doc.push_str(&seed001::robustness_section()?);
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
+    eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");
+    doc.push_str(&board::section());
     eprintln!("measuring the C library (scripts/c-firmware.sh) ...");
     doc.push_str(&cffi::section());
     eprintln!("measuring the speed of the plant model ...");

@@ -1,0 +1,174 @@
+//! Thin binding of `pmsm-core` to STM32G4 peripherals (register level, `stm32g4` PAC):
+//!
+//! - TIM1 centre-aligned complementary PWM at a configured frequency, dead time from the
+//!   configured dead time ([`timing`]), break input turning the outputs off in hardware;
+//! - ADC1/ADC2 injected conversions of the three phase currents and the bus voltage,
+//!   triggered by TIM1 (TRGO2 = OC4REF just before the counter peak, the centre of the
+//!   low-side conduction where low-side shunts carry the phase currents);
+//! - OPAMP1/2/3 as PGA gain stages of the shunts;
+//! - [`control_step`]: one control interrupt's work over the narrow traits
+//!   [`ThreePhasePwm`] and [`PhaseCurrentSampler`].
+//!
+//! Everything except the `hw` module (bare-metal ARM only) is pure and tested on the host:
+//! prescaler and period for a frequency, dead-time register encoding, ADC scaling to per unit,
+//! offset calibration, the speed knob, and the register values the `hw` module writes.
+//!
+//! The traits live here for now; the core should own them (design.md: "the core defines its
+//! own narrow traits ... and the binding implements them"), which is a move of this file's
+//! trait definitions into `pmsm-core` without other change.
+#![no_std]
+
+pub mod adc;
+pub mod regs;
+pub mod timing;
+
+#[cfg(all(target_arch = "arm", target_os = "none"))]
+#[allow(unsafe_code)]
+pub mod hw;
+
+use pmsm_core::drive::{Drive, DriveInput, DriveOutput};
+use pmsm_core::svpwm::Duties;
+
+/// A three-phase inverter driven by complementary PWM.
+pub trait ThreePhasePwm {
+    /// Sets the leg duties for the next PWM period (preloaded: applied at the next update).
+    fn set_duties(&mut self, duties: &Duties);
+    /// Turns the outputs on (after a break or a `disable`).
+    fn enable(&mut self);
+    /// Turns every switch off.
+    fn disable(&mut self);
+    /// True while the outputs are switching.
+    fn is_enabled(&self) -> bool;
+}
+
+/// The measurements of one control sample (phase currents and bus voltage, per unit), taken
+/// at the PWM centre.
+pub trait PhaseCurrentSampler {
+    /// The sample that triggered this control interrupt.
+    fn sample(&mut self) -> DriveInput;
+}
+
+/// One control interrupt: sample, step the drive, apply its output (duties first, then the
+/// outputs on; or the outputs off).
+pub fn control_step<P: ThreePhasePwm, S: PhaseCurrentSampler>(
+    drive: &mut Drive,
+    pwm: &mut P,
+    sampler: &mut S,
+) -> DriveOutput {
+    let input = sampler.sample();
+    let out = drive.step(&input);
+    apply(pwm, &out);
+    out
+}
+
+/// Applies a drive output to the inverter.
+pub fn apply<P: ThreePhasePwm>(pwm: &mut P, out: &DriveOutput) {
+    if out.pwm_on {
+        pwm.set_duties(&out.duties);
+        if !pwm.is_enabled() {
+            pwm.enable();
+        }
+    } else if pwm.is_enabled() {
+        pwm.disable();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pmsm_core::Abc;
+    use pmsm_core::Pu;
+    use pmsm_core::drive::{DriveConfig, DriveDesign, DriveState};
+    use pmsm_core::observer::EstimatorKind;
+    use pmsm_core::{InverterParams, MotorParams, PerUnit};
+
+    #[derive(Default)]
+    struct MockPwm {
+        duties: Option<Duties>,
+        on: bool,
+        enables: u32,
+        disables: u32,
+    }
+
+    impl ThreePhasePwm for MockPwm {
+        fn set_duties(&mut self, d: &Duties) {
+            self.duties = Some(*d);
+        }
+        fn enable(&mut self) {
+            self.on = true;
+            self.enables += 1;
+        }
+        fn disable(&mut self) {
+            self.on = false;
+            self.disables += 1;
+        }
+        fn is_enabled(&self) -> bool {
+            self.on
+        }
+    }
+
+    struct Fixed(DriveInput);
+
+    impl PhaseCurrentSampler for Fixed {
+        fn sample(&mut self) -> DriveInput {
+            self.0
+        }
+    }
+
+    fn drive() -> Drive {
+        let mut m = MotorParams::new(4, 0.3, 0.6e-3, 1.0e-3, 0.01, 2e-5, 1e-5);
+        m.rated_current_a = Some(5.0);
+        let inv = InverterParams {
+            vdc_v: 24.0,
+            pwm_hz: 20e3,
+            dead_time_s: 0.5e-6,
+            current_full_scale_a: 60.0,
+        };
+        let base = PerUnit::new(&m, &inv, 20e3).unwrap();
+        let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
+        Drive::new(DriveConfig::new(&m, &inv, 20e3, design).unwrap())
+    }
+
+    #[test]
+    fn idle_drive_keeps_outputs_off_and_running_drive_switches() {
+        let mut d = drive();
+        let mut pwm = MockPwm::default();
+        let vdc = Pu::from_num(1.732);
+        let mut s = Fixed(DriveInput {
+            i_abc: Abc::default(),
+            vdc,
+        });
+        let out = control_step(&mut d, &mut pwm, &mut s);
+        assert!(!out.pwm_on);
+        assert!(!pwm.on);
+        assert_eq!(pwm.enables, 0);
+        d.start();
+        assert_ne!(d.state(), DriveState::Idle);
+        let out = control_step(&mut d, &mut pwm, &mut s);
+        assert_eq!(out.pwm_on, pwm.on);
+        d.stop();
+        control_step(&mut d, &mut pwm, &mut s);
+        assert!(!pwm.on);
+    }
+
+    #[test]
+    fn overcurrent_turns_outputs_off() {
+        let mut d = drive();
+        let mut pwm = MockPwm::default();
+        d.start();
+        let big = Pu::from_num(10);
+        let mut s = Fixed(DriveInput {
+            i_abc: Abc {
+                a: big,
+                b: -big,
+                c: Pu::ZERO,
+            },
+            vdc: Pu::from_num(1.732),
+        });
+        pwm.on = true;
+        let out = control_step(&mut d, &mut pwm, &mut s);
+        assert!(!out.pwm_on);
+        assert!(!pwm.on);
+        assert!(matches!(d.state(), DriveState::Fault(_)));
+    }
+}

@@ -1,0 +1,97 @@
+//! B-G431B-ESC1 facts. Sources: ST UM2516 (the kit's user manual: pinout, 8 MHz crystal,
+//! L6387 drivers, 3 mΩ shunts); the STM32G431 datasheet (DS12589, alternate functions) and
+//! RM0440 (ADC channels of the OPAMP outputs); ST's and SimpleFOC's published board support
+//! for this kit (OPAMPs in PGA mode, gain 16 with the external network on VINM0, overall
+//! shunt-to-ADC gain −64/7 ≈ −9.14, potentiometer on PB12, bus divider on PA0). Where a value
+//! could not be checked against the schematic it says so.
+//!
+//! | signal | pin | peripheral |
+//! |---|---|---|
+//! | U high / low | PA8 / PC13 | TIM1_CH1 (AF6) / TIM1_CH1N (AF4) |
+//! | V high / low | PA9 / PA12 | TIM1_CH2 (AF6) / TIM1_CH2N (AF6) |
+//! | W high / low | PA10 / PB15 | TIM1_CH3 (AF6) / TIM1_CH3N (AF4) |
+//! | shunt U, V, W | PA1, PA7, PB0 | OPAMP1/2/3 VINP0 → ADC1_IN13, ADC2_IN16, ADC2_IN18 |
+//! | bus voltage | PA0 | ADC1_IN1 |
+//! | potentiometer | PB12 | ADC1_IN11 |
+
+use pmsm_stm32::adc::{AdcSpec, CurrentSensing, VoltageSensing};
+use pmsm_stm32::hw::InjectedChannels;
+use pmsm_stm32::regs::{BreakSource, PgaGain};
+use stm32g4::stm32g431 as pac;
+
+/// The ADC: 12 bits, VREF+ = VDDA = 3.3 V.
+pub const ADC: AdcSpec = AdcSpec {
+    vref_v: 3.3,
+    bits: 12,
+};
+
+/// Phase-current sensing: 3 mΩ low-side shunts, overall gain −64/7 (OPAMP PGA ×16 behind
+/// the board's input network; negative: a positive phase current lowers the reading).
+pub const CURRENT: CurrentSensing = CurrentSensing {
+    adc: ADC,
+    shunt_ohm: 0.003,
+    gain: -64.0 / 7.0,
+};
+
+/// The OPAMPs' PGA gain (the board's resistor network makes the overall −64/7).
+pub const PGA_GAIN: PgaGain = PgaGain::X16;
+
+/// Bus voltage divider. NOT VERIFIED against the schematic: 169 kΩ over 18 kΩ (ratio
+/// 0.0963, 34 V full scale, enough for the 6S battery the board is made for); check R and
+/// correct this value, or the drive trips on bus under/over-voltage.
+pub const VBUS: VoltageSensing = VoltageSensing {
+    adc: ADC,
+    divider: 18.0 / (169.0 + 18.0),
+};
+
+/// ADC channels.
+pub const CHANNELS: InjectedChannels = InjectedChannels {
+    adc1: [13, 1],
+    adc2: [16, 18],
+    regular: 11,
+};
+
+/// The break input: software break only. The kit's over-current protection (ST's firmware
+/// uses the internal comparators on the OPAMP outputs with a DAC threshold) is not set up
+/// yet; `BreakSource::Comparators` is ready for it. The core's over-current trip (3 × rated
+/// peak) turns the outputs off within one PWM period.
+pub const BREAK: BreakSource = BreakSource::SoftwareOnly;
+
+/// Sets `pin` of a GPIO port to alternate function `af`, very high speed.
+macro_rules! alternate {
+    ($gpio:expr, $pin:expr, $af:expr) => {{
+        let (pin, af): (u32, u32) = ($pin, $af);
+        // SAFETY (for the whole-register writes): only the bits of `pin` change.
+        unsafe {
+            $gpio
+                .ospeedr()
+                .modify(|r, w| w.bits(r.bits() | (0b11 << (2 * pin))));
+            if pin < 8 {
+                $gpio
+                    .afrl()
+                    .modify(|r, w| w.bits((r.bits() & !(0xF << (4 * pin))) | (af << (4 * pin))));
+            } else {
+                let s = 4 * (pin - 8);
+                $gpio
+                    .afrh()
+                    .modify(|r, w| w.bits((r.bits() & !(0xF << s)) | (af << s)));
+            }
+            $gpio
+                .moder()
+                .modify(|r, w| w.bits((r.bits() & !(0b11 << (2 * pin))) | (0b10 << (2 * pin))));
+        }
+    }};
+}
+
+/// The six gate-driver inputs to TIM1. The analog inputs (PA0, PA1, PA7, PB0, PB12 and the
+/// OPAMP VINM0 pins PA3, PA5, PB2) stay in their reset state, analog.
+pub fn pwm_pins(gpioa: &pac::GPIOA, gpiob: &pac::GPIOB, gpioc: &pac::GPIOC) {
+    // TIM1 is configured first, so with MOE = 0 (OSSI = 1) the pins drive the idle level,
+    // low (both switches of each leg off), from the moment they switch over.
+    alternate!(gpioa, 8, 6);
+    alternate!(gpioa, 9, 6);
+    alternate!(gpioa, 10, 6);
+    alternate!(gpioa, 12, 6);
+    alternate!(gpiob, 15, 4);
+    alternate!(gpioc, 13, 4);
+}

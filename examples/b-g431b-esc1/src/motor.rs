@@ -1,0 +1,48 @@
+//! The motor and inverter this firmware drives. The B-G431B-ESC1 kit has no fixed motor:
+//! REPLACE these values with your motor's (R and L measured line-to-neutral, ψ from the
+//! back-EMF constant: ψ = Ke[V_peak,LL / (rad/s mech)] / (√3 · p)).
+//!
+//! Defaults: a small 24 V interior PM motor.
+
+use pmsm_core::{InverterParams, MotorParams};
+
+/// Pole pairs.
+pub const POLE_PAIRS: u32 = 4;
+/// Stator phase resistance, Ω.
+pub const RS_OHM: f64 = 0.3;
+/// d-axis inductance, H.
+pub const LD_H: f64 = 0.6e-3;
+/// q-axis inductance, H.
+pub const LQ_H: f64 = 1.0e-3;
+/// Magnet flux linkage, Wb (peak, electrical).
+pub const FLUX_WB: f64 = 0.01;
+/// Rated current, A RMS (the per-unit base current is its peak, 7.07 A).
+pub const RATED_A_RMS: f64 = 5.0;
+/// Rotor and load inertia, kg·m².
+pub const J_KG_M2: f64 = 2e-5;
+/// Viscous friction, N·m·s/rad.
+pub const B_NM_S: f64 = 1e-5;
+
+/// Nominal bus voltage, V.
+pub const VDC_V: f64 = 24.0;
+/// PWM frequency, Hz (one control sample per PWM period).
+pub const PWM_HZ: u32 = 20_000;
+/// Dead time, ns.
+pub const DEAD_TIME_NS: u32 = 500;
+
+/// The motor.
+pub fn motor() -> MotorParams {
+    let mut m = MotorParams::new(POLE_PAIRS, RS_OHM, LD_H, LQ_H, FLUX_WB, J_KG_M2, B_NM_S);
+    m.rated_current_a = Some(RATED_A_RMS);
+    m
+}
+
+/// The inverter (the board's current full scale: ±1.65 V / (9.14 · 3 mΩ) ≈ 60 A).
+pub fn inverter() -> InverterParams {
+    InverterParams {
+        vdc_v: VDC_V,
+        pwm_hz: PWM_HZ as f64,
+        dead_time_s: DEAD_TIME_NS as f64 * 1e-9,
+        current_full_scale_a: crate::board::CURRENT.full_scale_a(),
+    }
+}

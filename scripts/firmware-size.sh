@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Builds the B-G431B-ESC1 firmware (examples/b-g431b-esc1, release, thumbv7em-none-eabihf),
+# prints its flash and static RAM, and fails (exit 1) if
+#   - flash (text + data) exceeds 64 KiB or static RAM (data + bss, .uninit included)
+#     exceeds 16 KiB (issue 5's limits), or
+#   - text, data or bss differ from the checked-in snapshot
+#     examples/b-g431b-esc1/size-snapshot.txt by more than SIZE_TOLERANCE_PCT (default 5) %
+#     (a section under 1 KiB may move by up to 64 bytes).
+# BLESS=1 rewrites the snapshot instead of comparing with it.
+#
+# Needs: rustup target add thumbv7em-none-eabihf; arm-none-eabi-size
+#        (apt-get install -y binutils-arm-none-eabi).
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+fw="$root/examples/b-g431b-esc1"
+snapshot="$fw/size-snapshot.txt"
+tol="${SIZE_TOLERANCE_PCT:-5}"
+flash_max=$((64 * 1024))
+ram_max=$((16 * 1024))
+
+if ! command -v arm-none-eabi-size >/dev/null; then
+  echo "firmware-size: arm-none-eabi-size not found (apt-get install -y binutils-arm-none-eabi)" >&2
+  exit 1
+fi
+
+(cd "$fw" && cargo build --release --locked >&2)
+target_dir="${CARGO_TARGET_DIR:-$fw/target}"
+elf="$target_dir/thumbv7em-none-eabihf/release/b-g431b-esc1"
+
+read -r text data bss < <(arm-none-eabi-size -B "$elf" | awk 'NR == 2 { print $1, $2, $3 }')
+flash=$((text + data))
+ram=$((data + bss))
+printf 'firmware b-g431b-esc1: text %d data %d bss %d bytes\n' "$text" "$data" "$bss"
+printf 'firmware b-g431b-esc1: flash %d of %d bytes (%d.%d %%), static RAM %d of %d bytes (%d.%d %%)\n' \
+  "$flash" "$flash_max" $((flash * 100 / flash_max)) $((flash * 1000 / flash_max % 10)) \
+  "$ram" "$ram_max" $((ram * 100 / ram_max)) $((ram * 1000 / ram_max % 10))
+
+status=0
+if ((flash > flash_max)); then
+  echo "firmware-size: FAIL: flash $flash > $flash_max bytes" >&2
+  status=1
+fi
+if ((ram > ram_max)); then
+  echo "firmware-size: FAIL: static RAM $ram > $ram_max bytes" >&2
+  status=1
+fi
+
+if [[ "${BLESS:-0}" == 1 ]]; then
+  {
+    echo "# Size of examples/b-g431b-esc1 (release, thumbv7em-none-eabihf), bytes."
+    echo "# Checked by scripts/firmware-size.sh; BLESS=1 scripts/firmware-size.sh rewrites it."
+    echo "text $text"
+    echo "data $data"
+    echo "bss $bss"
+  } >"$snapshot"
+  echo "firmware-size: snapshot written to ${snapshot#"$root"/}"
+  exit "$status"
+fi
+
+if [[ ! -f "$snapshot" ]]; then
+  echo "firmware-size: FAIL: no snapshot ${snapshot#"$root"/} (run with BLESS=1)" >&2
+  exit 1
+fi
+for section in text data bss; do
+  want=$(awk -v s="$section" '$1 == s { print $2 }' "$snapshot")
+  got=${!section}
+  if [[ -z "$want" ]]; then
+    echo "firmware-size: FAIL: snapshot has no '$section' line" >&2
+    status=1
+    continue
+  fi
+  diff=$((got > want ? got - want : want - got))
+  allowed=$((want * tol / 100))
+  ((allowed < 64)) && allowed=64
+  if ((diff > allowed)); then
+    echo "firmware-size: FAIL: $section $got bytes vs snapshot $want (more than $tol %); BLESS=1 to accept" >&2
+    status=1
+  else
+    printf 'firmware-size: %s %d vs snapshot %d: within %d %%\n' "$section" "$got" "$want" "$tol"
+  fi
+done
+exit "$status"
