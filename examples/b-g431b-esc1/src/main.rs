@@ -97,10 +97,19 @@ fn fault_code(s: DriveState) -> u8 {
     }
 }
 
+/// A configuration the firmware cannot run: say so and stop here, outputs never enabled. No
+/// panic machinery (the release image has no panic path; CI checks its symbols).
+fn halt(why: &str) -> ! {
+    defmt::error!("cannot start: {=str}", why);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
 #[entry]
 fn main() -> ! {
     let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take()) else {
-        defmt::panic!("peripherals taken");
+        halt("peripherals taken");
     };
     let src = hw::clock_170mhz(&dp.RCC, &dp.PWR, &dp.FLASH);
     if src == hw::ClockSource::Hsi16 {
@@ -113,25 +122,25 @@ fn main() -> ! {
     let (m, inv) = (motor::motor(), motor::inverter());
     let sample_hz = motor::PWM_HZ as f64;
     let Ok(base) = PerUnit::new(&m, &inv, sample_hz) else {
-        defmt::panic!("motor.rs: the motor is outside the fixed-point envelope");
+        halt("motor.rs: the motor is outside the fixed-point envelope");
     };
     let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
     let Ok(config) = DriveConfig::new(&m, &inv, sample_hz, design) else {
-        defmt::panic!(
-            "motor.rs: the drive configuration failed (run `pmsm simulate` on the host for the message)"
+        halt(
+            "motor.rs: the drive configuration failed (run `pmsm simulate` on the host for the message)",
         );
     };
     let (Ok(current), Ok(voltage)) = (
         board::CURRENT.scale(base.current_a),
         board::VBUS.scale(base.voltage_v),
     ) else {
-        defmt::panic!("ADC scaling out of range");
+        halt("ADC scaling out of range");
     };
     let Ok(timing) = PwmTiming::centre_aligned(hw::SYSCLK_HZ, motor::PWM_HZ) else {
-        defmt::panic!("PWM frequency");
+        halt("PWM frequency");
     };
     let Ok(dead) = DeadTime::at_least(hw::SYSCLK_HZ, motor::DEAD_TIME_NS) else {
-        defmt::panic!("dead time");
+        halt("dead time");
     };
     defmt::info!(
         "PWM {=u32} Hz: PSC {=u16} ARR {=u16}; dead time {=u32} ns (DTG {=u8:#x}, CKD {=u8})",

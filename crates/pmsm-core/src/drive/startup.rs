@@ -62,7 +62,9 @@ impl OpenLoop {
             c.open_loop.current
         } else {
             // I · count/half in i64: the ramp is exact to an LSB and cannot overflow.
-            let bits = c.open_loop.current.to_bits() as i64 * self.count as i64 / half as i64;
+            let bits = (c.open_loop.current.to_bits() as i64 * self.count as i64)
+                .checked_div(half as i64)
+                .unwrap_or(0);
             Pu::from_bits(bits as i32)
         };
         (Angle::ZERO, Dq { d: i, q: Pu::ZERO })

@@ -167,7 +167,10 @@ impl Estimator for MrasEmf {
         // ω̂_Ad = (k1 ε + k2 ∫) / ω̂_AO (seed 000 eq. 29).
         let num = c.k1.apply(eps).saturating_add(c.k2.apply(self.integral));
         let omega = Pu::from_bits(sat_i32(
-            ((num.to_bits() as i64) << 24) / speed_ao.to_bits() as i64,
+            // speed_ao ≥ MIN_SPEED_PU > 0; checked so that no panic path is linked.
+            ((num.to_bits() as i64) << 24)
+                .checked_div(speed_ao.to_bits() as i64)
+                .unwrap_or(0),
         ));
         let p = polar(self.model.alpha, self.model.beta);
         self.last = Estimate {
