@@ -37,13 +37,17 @@
 //!
 //! # Formats
 //!
-//! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM` and `1/i_band`:
-//! [`WideGain`]. `s_x`: [`Pu`] in [−1, 1]. `V_dt` within 2 LSB of the f64 formula.
+//! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM`: [`WideGain`];
+//! `16/i_band`: [`Gain`]. `s_x`: Q4.28 in [−1, 1] (a current more than `i_band` from zero is
+//! ±1 without a product). `V_dt` is formed as the Clarke transform of the signs, scaled once:
+//! `α = V_dead (2s_a − s_b − s_c)/3`, `β = V_dead (s_b − s_c)/√3` (the sign sums exact in
+//! Q4.28, their scaled values in Q2.30, one rounding to [`Pu`]); within 2 LSB of the f64
+//! formula.
 
 use crate::control::WideGain;
 use crate::error::ConfigError;
-use crate::frames::{Abc, AlphaBeta, clarke, inverse_clarke};
-use crate::num::{Pu, mul, pu_from_f64};
+use crate::frames::{Abc, AlphaBeta, inverse_clarke};
+use crate::num::{Gain, Pu, Unit, mul_unit, pu_from_f64, round_shift_sat, wmul};
 use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative};
 use crate::units::PerUnit;
 
@@ -130,8 +134,10 @@ pub struct DeadTimeConfig {
     k_bus: WideGain,
     /// `[(V_sat + V_f)/2 − T_eff f_PWM (V_sat − V_f)] / V_b`.
     v_const: Pu,
-    /// `1/i_band`, per unit.
-    inv_band: WideGain,
+    /// `16/i_band`, per unit: a [`Pu`] current times it is its sign `sat(i/i_band)` in Q4.28.
+    inv_band: Gain,
+    /// `i_band` in LSB of [`Pu`], rounded up: beyond it the sign is ±1 exactly.
+    band_bits: i32,
     /// The design (SI).
     pub design: DeadTimeDesign,
     /// `V_dead` at the nominal bus, V.
@@ -184,7 +190,14 @@ impl DeadTimeConfig {
         Ok(Self {
             k_bus: gain("dead_time_s", k)?,
             v_const: pu_from_f64(v_const / base.voltage_v),
-            inv_band: gain("deadtime.band_a", base.current_a / band)?,
+            inv_band: Gain::new(16.0 * base.current_a / band).ok_or(ConfigError::Gain {
+                key: "deadtime.band_a",
+                value: band,
+                min: 1e-6 * base.current_a,
+                max: 10.0 * base.current_a,
+            })?,
+            // band ≤ 10 I_b: at most 10·2²⁴ + 1 LSB.
+            band_bits: libm::ceil(band / base.current_a * (1u64 << 24) as f64) as i32,
             design,
             v_dead_nominal_v: k * inverter.vdc_v + v_const,
         })
@@ -199,23 +212,44 @@ impl DeadTimeConfig {
         self.k_bus.apply(vdc).saturating_add(self.v_const)
     }
 
-    /// `sat(i/i_band)` in [−1, 1].
-    fn sign(&self, i: Pu) -> Pu {
-        self.inv_band
-            .apply(i)
-            .clamp(Pu::from_bits(-(1 << 24)), Pu::from_bits(1 << 24))
+    /// `sat(i/i_band)` in [−1, 1], Q4.28. Beyond `band_bits` the product would be at least
+    /// one (the gain is within 2⁻³⁰ of `16/i_band` and `band_bits ≥ i_band`, so `|i| ≥ i_band +
+    /// 1 LSB` gives `|i|·g ≥ 16 (1 + 2⁻²⁸)(1 − 2⁻³⁰) > 16`): ±1 without the product, the same
+    /// bits as the clamp.
+    #[inline(always)]
+    fn sign(&self, i: Pu) -> i32 {
+        let x = i.to_bits();
+        if x > self.band_bits {
+            SIGN_ONE
+        } else if x < -self.band_bits {
+            -SIGN_ONE
+        } else {
+            self.inv_band.apply_bits(x).clamp(-SIGN_ONE, SIGN_ONE)
+        }
     }
 
     /// The dead-time error vector `V_dt` (eq. 7) for the current `i` (αβ, per unit: the
     /// measurement or the reference, see [`CurrentSource`]) on the bus `vdc`.
     pub fn error_vector(&self, i: AlphaBeta, vdc: Pu) -> AlphaBeta {
+        self.error_vector_abc(inverse_clarke(i), vdc)
+    }
+
+    /// [`DeadTimeConfig::error_vector`] from the phase currents (what a drive measuring three
+    /// phases already has): `V_dt = clarke(V_dead · s)` written as the Clarke transform of the
+    /// signs, `α = V_dead (2s_a − s_b − s_c)/3`, `β = V_dead (s_b − s_c)/√3`.
+    pub fn error_vector_abc(&self, i: Abc, vdc: Pu) -> AlphaBeta {
         let v = self.v_dead(vdc);
-        let ph = inverse_clarke(i);
-        clarke(Abc {
-            a: mul(v, self.sign(ph.a)),
-            b: mul(v, self.sign(ph.b)),
-            c: mul(v, self.sign(ph.c)),
-        })
+        let (sa, sb, sc) = (self.sign(i.a), self.sign(i.b), self.sign(i.c));
+        // Q4.28, |s| ≤ 2²⁸: the sums are exact, |2s_a − s_b − s_c| ≤ 2³⁰, |s_b − s_c| ≤ 2²⁹.
+        let s_alpha = 2 * sa - sb - sc;
+        let s_beta = sb - sc;
+        // To Q2.30: (4/3) s_alpha ≤ 4/3 and (4/√3) s_beta ≤ 2/√3 in value, both below 2.
+        let u_alpha = round_shift_sat(wmul(s_alpha, FOUR_THIRDS_Q30), 30);
+        let u_beta = round_shift_sat(wmul(s_beta, FOUR_INV_SQRT3_Q29), 29);
+        AlphaBeta {
+            alpha: mul_unit(v, Unit::from_bits(u_alpha)),
+            beta: mul_unit(v, Unit::from_bits(u_beta)),
+        }
     }
 
     /// The command to send to the PWM for the reference `v_ref`: `v_ref + V_dt` when the mode
@@ -242,6 +276,13 @@ impl DeadTimeConfig {
         }
     }
 }
+
+/// One in Q4.28 (the format of the signs).
+const SIGN_ONE: i32 = 1 << 28;
+/// `4/3` in Q2.30 (Q4.28 sign sum to Q2.30, divided by 3).
+const FOUR_THIRDS_Q30: i32 = 1_431_655_765;
+/// `4/√3` in Q3.29 (Q4.28 sign difference to Q2.30, divided by √3).
+const FOUR_INV_SQRT3_Q29: i32 = 1_239_850_262;
 
 fn add(a: AlphaBeta, b: AlphaBeta) -> AlphaBeta {
     AlphaBeta {

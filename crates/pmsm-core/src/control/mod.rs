@@ -19,7 +19,7 @@ pub use pi::{Limits, Pi, PiConfig, PiOutput};
 pub use speed::{SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};
 
 use crate::error::ConfigError;
-use crate::num::{PU_FRAC, Pu, sat_i32, wmul};
+use crate::num::{PU_FRAC, Pu, round_shift_sat, sat_i32, wmul};
 
 /// Fractional bits of the wide accumulators (integrators): Q16.48 in `i64`, range ±32768,
 /// LSB 2⁻⁴⁸ ≈ 3.6e−15, i.e. 2²⁴ steps per LSB of [`Pu`].
@@ -104,10 +104,32 @@ impl WideGain {
         r.clamp(-(WIDE_LIMIT as i128), WIDE_LIMIT as i128) as i64
     }
 
-    /// `factor · x` rounded to [`Pu`], saturated.
+    /// `factor · u` for a [`Unit`](crate::num::Unit) (Q2.30) factor `u`, rounded to [`Pu`]
+    /// (one rounding of the exact product), saturated.
+    #[inline]
+    pub fn apply_unit(self, u: crate::num::Unit) -> Pu {
+        // Value u · 2^−30 · m · 2^−shift; in Q8.24 bits prod · 2^−(shift + 6).
+        let prod = wmul(u.to_bits(), self.mantissa);
+        let s = self.shift + (crate::num::UNIT_FRAC - PU_FRAC);
+        if s > 62 {
+            Pu::ZERO
+        } else {
+            Pu::from_bits(round_shift_sat(prod, s))
+        }
+    }
+
+    /// `factor · x` rounded to [`Pu`], saturated: one rounding of the exact product (not
+    /// through Q16.48), within half an LSB.
     #[inline]
     pub fn apply(self, x: Pu) -> Pu {
-        wide_to_pu(self.apply_wide(x))
+        // The product's value is prod · 2^−(shift + 24): in Q8.24 bits, prod · 2^−shift.
+        // |prod| ≤ 2^61 (|mantissa| ≤ 2^30), so beyond a shift of 62 it rounds to zero.
+        let prod = wmul(x.to_bits(), self.mantissa);
+        if self.shift > 62 {
+            Pu::ZERO
+        } else {
+            Pu::from_bits(round_shift_sat(prod, self.shift))
+        }
     }
 }
 

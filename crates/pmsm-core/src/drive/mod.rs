@@ -321,7 +321,7 @@ impl Drive {
                     self.state = self.rotor_found(Angle::ZERO);
                     self.telemetry.estimate = self.estimator.estimate();
                 }
-                self.control(i, input.vdc, theta, Pu::ZERO, i_ref, None)
+                self.control(i, input.i_abc, input.vdc, theta, Pu::ZERO, i_ref, None)
             }
             DriveState::OpenLoop => {
                 let (theta, omega, i_ref) = self.open_loop.advance(&self.config);
@@ -335,7 +335,7 @@ impl Drive {
                         Err(fault) => return self.trip(fault),
                     }
                 }
-                self.control(i, input.vdc, theta, omega, i_ref, None)
+                self.control(i, input.i_abc, input.vdc, theta, omega, i_ref, None)
             }
             DriveState::Run => {
                 let speed = self.speed.step(self.run_speed_ref(), self.speed_filtered);
@@ -346,6 +346,7 @@ impl Drive {
                 let frame = self.estimator.frame();
                 self.control(
                     i,
+                    input.i_abc,
                     input.vdc,
                     estimate.theta,
                     estimate.omega,
@@ -377,11 +378,13 @@ impl Drive {
     }
 
     /// Current loops in the frame at `theta` turning at `omega`, dead-time compensation and
-    /// modulation (seed 001 Fig. 1). `frame`, when given, is `(theta.sin_cos(), park(i, ..))`
+    /// modulation (seed 001 Fig. 1). `i_abc` is the measurement `i` came from. `frame`, when given, is `(theta.sin_cos(), park(i, ..))`
     /// already computed by the estimator.
+    #[allow(clippy::too_many_arguments)]
     fn control(
         &mut self,
         i: AlphaBeta,
+        i_abc: Abc,
         vdc: Pu,
         theta: Angle,
         omega: Pu,
@@ -404,11 +407,11 @@ impl Drive {
         let half = Angle(c.open_loop.turn_per_speed.apply_bits(omega.to_bits()) / 2);
         let sc_mid = (theta + half).sin_cos();
         let v_ref = inverse_park(out.v, sc_mid);
-        let i_dt = match c.deadtime.design.source {
-            CurrentSource::Measured => i,
-            CurrentSource::Reference => inverse_park(i_ref, sc_mid),
+        // The measured phase currents go to the signs as sampled (no Clarke round trip).
+        let v_dt = match c.deadtime.design.source {
+            CurrentSource::Measured => c.deadtime.error_vector_abc(i_abc, vdc),
+            CurrentSource::Reference => c.deadtime.error_vector(inverse_park(i_ref, sc_mid), vdc),
         };
-        let v_dt = c.deadtime.error_vector(i_dt, vdc);
         let m = c
             .svpwm
             .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);

@@ -92,7 +92,7 @@ use crate::control::pi::{Limits, Pi, PiConfig};
 use crate::control::{WideGain, gain_in, wide_gain};
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq, park};
-use crate::num::{Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64, round_shift_sat};
+use crate::num::{Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64, round_shift_sat, wmul_inline};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
@@ -345,14 +345,6 @@ impl MrasCurrent {
         };
     }
 
-    /// `gain · u` for a Q2.30 factor `u`, in [`Pu`].
-    fn unit_times(gain: WideGain, u: Unit) -> Pu {
-        // apply_wide reads the bits as Q8.24 and returns Q.48: the real product of the Q2.30
-        // value is that, shifted by 30 − 24 + 24 = 30 bits to land in Q8.24.
-        let w = gain.apply_wide(Pu::from_bits(u.to_bits()));
-        Pu::from_bits(round_shift_sat(w, UNIT_FRAC))
-    }
-
     /// Exact rotation of the model flux by `−Δ` (the frame advancing by `Δ`).
     fn rotate(&mut self, sc: SinCos) {
         let c = &self.config;
@@ -360,10 +352,10 @@ impl MrasCurrent {
         let one_minus_c = Unit::from_bits((1i32 << UNIT_FRAC).saturating_sub(sc.cos.to_bits()));
         let d = mul_unit(id, sc.cos)
             .saturating_add(c.lq_ld.apply(mul_unit(iq, sc.sin)))
-            .saturating_sub(Self::unit_times(c.psi_ld, one_minus_c));
+            .saturating_sub(c.psi_ld.apply_unit(one_minus_c));
         let q = mul_unit(iq, sc.cos)
             .saturating_sub(c.ld_lq.apply(mul_unit(id, sc.sin)))
-            .saturating_sub(Self::unit_times(c.psi_lq, sc.sin));
+            .saturating_sub(c.psi_lq.apply_unit(sc.sin));
         self.i_hat = Dq { d, q };
     }
 
@@ -385,12 +377,33 @@ impl MrasCurrent {
     }
 }
 
+/// sin/cos of the frame advance `Δ = θ̂_k − θ̂_{k−1}` from the sin/cos of the two frames
+/// (`sin Δ = s_k c_{k−1} − c_k s_{k−1}`, `cos Δ = c_k c_{k−1} + s_k s_{k−1}`, one rounding each)
+/// instead of a third `sin_cos`; exactly `(0, 1)` when the frame did not move. The two
+/// products carry the sin/cos error of both frames (a few LSB of Q2.30, as `sin_cos(Δ)` has).
+#[inline(always)]
+fn advance(prev: SinCos, now: SinCos) -> SinCos {
+    if prev == now {
+        return SinCos {
+            sin: Unit::ZERO,
+            cos: Unit::from_bits(1 << UNIT_FRAC),
+        };
+    }
+    let dot = |a: Unit, b: Unit, c: Unit, d: Unit| {
+        let acc = wmul_inline(a.to_bits(), b.to_bits()) + wmul_inline(c.to_bits(), d.to_bits());
+        Unit::from_bits(round_shift_sat(acc, UNIT_FRAC))
+    };
+    SinCos {
+        sin: dot(now.sin, prev.cos, now.cos.saturating_neg(), prev.sin),
+        cos: dot(now.cos, prev.cos, now.sin, prev.sin),
+    }
+}
+
 impl Estimator for MrasCurrent {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
         let omega = self.last.omega;
         // Frame advance over [t_{k−1}, t_k) with the speed held over it.
         let step = self.config.turn_per_speed.apply_wide(omega) as u64;
-        let delta = Angle((step.wrapping_add(1 << 31) >> 32) as u32 as i32);
         self.theta = self.theta.wrapping_add(step);
         let sc_prev = self.sc;
         let sc = self.angle().sin_cos();
@@ -406,7 +419,7 @@ impl Estimator for MrasCurrent {
             return self.last;
         }
         self.half_step(park(input.v, sc_prev));
-        self.rotate(delta.sin_cos());
+        self.rotate(advance(sc_prev, sc));
         self.half_step(park(input.v, sc));
         let c = &self.config;
         let e_d = i.d.saturating_sub(self.i_hat.d);
