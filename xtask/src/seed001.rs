@@ -3,7 +3,8 @@
 
 use anyhow::Result;
 use pmsm_cli::commands::ipd::{Detection, detect};
-use pmsm_cli::commands::simulate::{Row, draw, run_scenario};
+use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, window};
+use pmsm_cli::commands::simulate::{draw, run_scenario};
 use pmsm_cli::scenario_file;
 use pmsm_cli::{motor_file, plot};
 use pmsm_core::ipd::{IpdConfig, IpdDesign};
@@ -12,32 +13,6 @@ use std::path::Path;
 
 fn scenario(name: &str) -> Result<scenario_file::Scenario> {
     scenario_file::read(&super::root().join("examples").join(name))
-}
-
-fn window(rows: &[Row], t0: f64, t1: f64) -> Vec<&Row> {
-    rows.iter().filter(|r| r.t_s >= t0 && r.t_s < t1).collect()
-}
-
-fn max_angle(rows: &[&Row]) -> f64 {
-    rows.iter()
-        .map(|r| r.angle_error_rad().abs())
-        .fold(0.0, f64::max)
-}
-
-fn rms_angle(rows: &[&Row]) -> f64 {
-    (rows
-        .iter()
-        .map(|r| r.angle_error_rad().powi(2))
-        .sum::<f64>()
-        / rows.len() as f64)
-        .sqrt()
-}
-
-fn speed_err(rows: &[&Row]) -> f64 {
-    rows.iter()
-        .map(|r| (r.speed_rpm - r.speed_ref_rpm).abs() / r.speed_ref_rpm.abs())
-        .sum::<f64>()
-        / rows.len() as f64
 }
 
 /// Sweep of `n` angles on `motor_file` at `vdc` and `pwm_hz`.

@@ -2,6 +2,7 @@
 //! 1–4, and motor A driven by the NLO from standstill; each a test with numeric bounds, run
 //! through `pmsm simulate`'s own code on the shipped scenario files and variants of them.
 
+use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err};
 use pmsm_cli::commands::simulate::{Row, Run, run_scenario};
 use pmsm_cli::scenario_file::{self, Scenario};
 use pmsm_core::drive::DriveState;
@@ -39,29 +40,6 @@ fn rows_between(run: &Run, t0: f64, t1: f64) -> Vec<&Row> {
         .iter()
         .filter(|r| r.t_s >= t0 && r.t_s < t1)
         .collect()
-}
-
-fn max_angle(rows: &[&Row]) -> f64 {
-    rows.iter()
-        .map(|r| r.angle_error_rad().abs())
-        .fold(0.0, f64::max)
-}
-
-fn rms_angle(rows: &[&Row]) -> f64 {
-    (rows
-        .iter()
-        .map(|r| r.angle_error_rad().powi(2))
-        .sum::<f64>()
-        / rows.len() as f64)
-        .sqrt()
-}
-
-/// Mean |speed − reference| / |reference|.
-fn speed_err(rows: &[&Row]) -> f64 {
-    rows.iter()
-        .map(|r| (r.speed_rpm - r.speed_ref_rpm).abs() / r.speed_ref_rpm.abs())
-        .sum::<f64>()
-        / rows.len() as f64
 }
 
 fn no_fault(run: &Run) {
