@@ -2,8 +2,8 @@
 //! 1–4, and motor A driven by the NLO from standstill; each a test with numeric bounds, run
 //! through `pmsm simulate`'s own code on the shipped scenario files and variants of them.
 
-use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err};
-use pmsm_cli::commands::simulate::{Row, Run, run_scenario};
+use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, window};
+use pmsm_cli::commands::simulate::{Run, run_scenario};
 use pmsm_cli::scenario_file::{self, Scenario};
 use pmsm_core::drive::DriveState;
 use std::path::{Path, PathBuf};
@@ -35,13 +35,6 @@ fn scenario(name: &str, edits: &[(&str, &str)]) -> Scenario {
     sc
 }
 
-fn rows_between(run: &Run, t0: f64, t1: f64) -> Vec<&Row> {
-    run.rows
-        .iter()
-        .filter(|r| r.t_s >= t0 && r.t_s < t1)
-        .collect()
-}
-
 fn no_fault(run: &Run) {
     if let Some(r) = run
         .rows
@@ -66,9 +59,9 @@ fn item2_800_rpm_with_rated_load_from_several_angles() {
         no_fault(&run);
         let (est, truth) = run.ipd.expect("the drive started with a detection");
         let ipd_err = ((est - truth + 180.0).rem_euclid(360.0) - 180.0).abs();
-        let after = max_angle(&rows_between(&run, 0.3, 2.0));
-        let loaded = rows_between(&run, 1.3, 1.6);
-        let unloaded = rows_between(&run, 0.8, 1.0);
+        let after = max_angle(&window(&run.rows, 0.3, 2.0));
+        let loaded = window(&run.rows, 1.3, 1.6);
+        let unloaded = window(&run.rows, 0.8, 1.0);
         println!(
             "θ0 {theta}°: detection {ipd_err:.2}°, max angle error after 0.3 s {after:.3} rad, loaded rms {:.4} rad, speed {:.3} % / {:.3} %",
             rms_angle(&loaded),
@@ -88,9 +81,9 @@ fn item2_800_rpm_with_rated_load_from_several_angles() {
 fn item3_reversal_under_load() {
     let run = run_scenario(&scenario("b-reversal-load.toml", &[])).unwrap();
     no_fault(&run);
-    let after = max_angle(&rows_between(&run, 0.3, 5.0));
-    let steady_fwd = rows_between(&run, 2.0, 2.5);
-    let steady_rev = rows_between(&run, 4.3, 5.0);
+    let after = max_angle(&window(&run.rows, 0.3, 5.0));
+    let steady_fwd = window(&run.rows, 2.0, 2.5);
+    let steady_rev = window(&run.rows, 4.3, 5.0);
     println!(
         "reversal: max angle error {after:.3} rad; steady rms {:.4} / {:.4} rad; speed {:.3} % / {:.3} %",
         rms_angle(&steady_fwd),
@@ -120,8 +113,8 @@ fn reversal_through_zero_under_a_constant_load() {
     );
     let run = run_scenario(&sc).unwrap();
     no_fault(&run);
-    let after = max_angle(&rows_between(&run, 0.3, 5.0));
-    let steady = rows_between(&run, 4.3, 5.0);
+    let after = max_angle(&window(&run.rows, 0.3, 5.0));
+    let steady = window(&run.rows, 4.3, 5.0);
     println!(
         "reversal under a constant 4 N·m: max angle error {after:.3} rad, steady rms {:.4} rad, speed {:.3} %",
         rms_angle(&steady),
@@ -152,12 +145,12 @@ fn ip_speed_step_has_no_overshoot() {
     );
     let run = run_scenario(&sc).unwrap();
     no_fault(&run);
-    let settled_300 = rows_between(&run, 0.8, 1.0);
+    let settled_300 = window(&run.rows, 0.8, 1.0);
     assert!(
         speed_err(&settled_300) < 0.02,
         "not settled before the step"
     );
-    let step = rows_between(&run, 1.0, 2.0);
+    let step = window(&run.rows, 1.0, 2.0);
     let peak = step.iter().map(|r| r.speed_rpm).fold(f64::MIN, f64::max);
     let overshoot = (peak - 500.0) / (500.0 - 300.0);
     let id = step.iter().map(|r| r.i_dq_a[0].abs()).fold(0.0, f64::max);
@@ -166,7 +159,7 @@ fn ip_speed_step_has_no_overshoot() {
         100.0 * overshoot
     );
     assert!(overshoot <= 0.02, "{overshoot}");
-    let settled = rows_between(&run, 1.8, 2.0);
+    let settled = window(&run.rows, 1.8, 2.0);
     assert!(speed_err(&settled) < 0.02);
 }
 
@@ -190,7 +183,7 @@ fn item4_deadtime_compensation_at_150_rpm() {
             ],
         );
         let run = run_scenario(&sc).unwrap();
-        let steady = rows_between(&run, 1.4, 2.0);
+        let steady = window(&run.rows, 1.4, 2.0);
         let rms = rms_angle(&steady);
         let faulted = run
             .rows
@@ -215,9 +208,9 @@ fn item4_deadtime_compensation_at_150_rpm() {
 fn motor_a_nlo_from_standstill_under_load() {
     let run = run_scenario(&scenario("a-nlo-start-load.toml", &[])).unwrap();
     no_fault(&run);
-    let running = rows_between(&run, 0.9, 3.0);
+    let running = window(&run.rows, 0.9, 3.0);
     assert!(running.iter().all(|r| r.state == DriveState::Run));
-    let steady = rows_between(&run, 2.6, 3.0);
+    let steady = window(&run.rows, 2.6, 3.0);
     let at_speed = steady.iter().map(|r| r.speed_rpm).sum::<f64>() / steady.len() as f64;
     println!(
         "motor A, NLO: max angle error after handover {:.3} rad, steady rms {:.4} rad, speed {:.1} r/min ({:.3} %)",
