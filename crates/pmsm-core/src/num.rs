@@ -29,11 +29,33 @@ pub const UNIT_FRAC: u32 = 30;
 
 /// Rounds `x / 2^shift` to nearest (ties toward +∞) and saturates to `i32`.
 ///
-/// `shift` must be in 1..=62; this is a `const` contract of every caller in the crate.
+/// `shift` must be in 1..=62 and `|x| ≤ 2⁶³ − 2³²` (any product of two `i32`, or a sum of
+/// two such products); these are contracts of every caller in the crate. With a constant
+/// `shift` ≤ 32 (every per-sample product) this is about ten instructions on a Cortex-M4:
+/// the rounding half is added before the shift, and the fit test looks at the high word only.
 #[inline(always)]
 pub const fn round_shift_sat(x: i64, shift: u32) -> i32 {
-    let rounded = (x >> shift) + ((x >> (shift - 1)) & 1);
-    sat_i32(rounded)
+    if shift <= 32 {
+        shr_sat_small(x, shift)
+    } else {
+        let rounded = (x >> shift) + ((x >> (shift - 1)) & 1);
+        sat_i32(rounded)
+    }
+}
+
+/// [`round_shift_sat`] for `shift` in 1..=32: `p = x + 2^(shift−1)` cannot wrap under the
+/// contract on `x`, and `p >> shift` fits an `i32` exactly when bits 63 down to
+/// `shift + 31` of `p` agree, i.e. when the high word shifted right by `shift − 1` is all
+/// sign.
+#[inline(always)]
+const fn shr_sat_small(x: i64, shift: u32) -> i32 {
+    let p = x.wrapping_add(1 << (shift - 1));
+    let hi = (p >> 32) as i32;
+    if (hi >> (shift - 1)) == (hi >> 31) {
+        (p >> shift) as i32
+    } else {
+        (hi >> 31) ^ i32::MAX
+    }
 }
 
 /// Saturates an `i64` to the `i32` range.
@@ -205,6 +227,77 @@ impl Gain {
     }
 }
 
+/// A constant factor with a compile-time binary point: `value = bits · 2^−F`, `F` in 1..=32.
+///
+/// The hot path's twin of [`Gain`]: where a coefficient's range is known from the motor
+/// envelope, a fixed `F` makes every product one `SMULL`, a constant shift and a high-word
+/// fit test (about ten instructions on a Cortex-M4, against about forty for a `Gain`'s
+/// variable 64-bit shift). Range `[−2^(31−F), 2^(31−F))`, resolution `2^−F`; constructors
+/// reject values outside the range. `Coef<30>` holds gains below 2 in magnitude to 9.3e−10,
+/// `Coef<24>` below 128 to 6e−8.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Coef<const F: u32>(i32);
+
+impl<const F: u32> Coef<F> {
+    /// Zero.
+    pub const ZERO: Self = Self(0);
+
+    /// Largest magnitude a `Coef<F>` holds (exclusive): `2^(31−F)`.
+    pub const fn limit() -> f64 {
+        (1u64 << (31 - F)) as f64
+    }
+
+    /// The coefficient nearest to `value`, or `None` if it is not finite or outside
+    /// `[−2^(31−F), 2^(31−F))`.
+    pub fn new(value: f64) -> Option<Self> {
+        if !value.is_finite() {
+            return None;
+        }
+        let m = libm::round(libm::ldexp(value, F as i32));
+        if m >= 2_147_483_648.0 || m < -2_147_483_648.0 {
+            return None;
+        }
+        Some(Self(m as i32))
+    }
+
+    /// The raw bits (`value · 2^F`).
+    pub const fn bits(self) -> i32 {
+        self.0
+    }
+
+    /// The value as a float (exact).
+    pub fn to_f64(self) -> f64 {
+        libm::ldexp(self.0 as f64, -(F as i32))
+    }
+
+    /// `value · x` for a signal in any Q format, in the same format; rounded, saturated.
+    #[inline(always)]
+    pub fn apply_bits(self, x: i32) -> i32 {
+        round_shift_sat(wmul(x, self.0), F)
+    }
+
+    /// `value · x` for a [`Pu`] signal, rounded to nearest and saturated.
+    #[inline(always)]
+    pub fn apply(self, x: Pu) -> Pu {
+        Pu::from_bits(self.apply_bits(x.to_bits()))
+    }
+
+    /// The exact product `value · x · 2^F` (for accumulators that keep every bit).
+    #[inline(always)]
+    pub fn wide(self, x: i32) -> i64 {
+        wmul(x, self.0)
+    }
+}
+
+/// `a · x + b · y` with one rounding, saturated: two products for the price of one fit test.
+#[inline(always)]
+pub fn mac2<const F: u32>(a: Coef<F>, x: Pu, b: Coef<F>, y: Pu) -> Pu {
+    Pu::from_bits(round_shift_sat(
+        a.wide(x.to_bits()) + b.wide(y.to_bits()),
+        F,
+    ))
+}
+
 /// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).
 ///
 /// For configuration and host code; the control path never touches floats.
@@ -275,7 +368,87 @@ mod tests {
         assert_eq!(Gain::new(1e6).unwrap().apply(Pu::from_num(1)), Pu::MAX);
     }
 
+    fn round_shift_reference(x: i64, shift: u32) -> i32 {
+        let r = (x as i128 + (1i128 << (shift - 1))) >> shift;
+        r.clamp(i32::MIN as i128, i32::MAX as i128) as i32
+    }
+
+    #[test]
+    fn round_shift_at_the_corners() {
+        let lim = i64::MAX - (1i64 << 32) + 1;
+        for shift in [1, 2, 23, 24, 30, 31, 32, 33, 48, 62] {
+            for x in [
+                0,
+                1,
+                -1,
+                lim,
+                -lim,
+                1 << 62,
+                -(1 << 62),
+                i32::MAX as i64,
+                i32::MIN as i64,
+            ] {
+                assert_eq!(
+                    round_shift_sat(x, shift),
+                    round_shift_reference(x, shift),
+                    "{x} {shift}"
+                );
+            }
+            let edge = (i32::MAX as i64) << shift;
+            for x in [edge - 1, edge, edge + 1, -edge - 1, -edge, -edge + 1] {
+                assert_eq!(
+                    round_shift_sat(x, shift),
+                    round_shift_reference(x, shift),
+                    "{x} {shift}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn coefs_reject_what_they_cannot_hold() {
+        assert_eq!(
+            Coef::<30>::new(1.999_999_999).map(|c| c.bits()),
+            Some(i32::MAX)
+        );
+        assert_eq!(Coef::<30>::new(2.0), None);
+        assert_eq!(Coef::<30>::new(-2.0).map(|c| c.bits()), Some(i32::MIN));
+        assert_eq!(Coef::<24>::new(f64::NAN), None);
+        assert_eq!(
+            Coef::<24>::new(100.0).unwrap().apply(Pu::from_num(2)),
+            Pu::MAX
+        );
+        assert_eq!(Coef::<30>::limit(), 2.0);
+    }
+
     proptest! {
+        #[test]
+        fn round_shift_matches_exact_rounding(
+            x in -(i64::MAX - (1i64 << 32) + 1)..=(i64::MAX - (1i64 << 32) + 1),
+            shift in 1u32..=62,
+        ) {
+            prop_assert_eq!(round_shift_sat(x, shift), round_shift_reference(x, shift));
+        }
+
+        #[test]
+        fn coef_within_half_lsb(v in -100.0f64..100.0, x in any::<i32>(), y in any::<i32>()) {
+            let c = Coef::<24>::new(v).unwrap();
+            prop_assert!((c.to_f64() - v).abs() <= 0.5 / (1u64 << 24) as f64);
+            let exact = x as f64 * c.to_f64();
+            let got = c.apply_bits(x) as f64;
+            if exact.abs() < 2.1e9 {
+                prop_assert!((got - exact).abs() <= 0.5);
+            } else {
+                prop_assert_eq!(got, if exact > 0.0 { i32::MAX as f64 } else { i32::MIN as f64 });
+            }
+            let d = Coef::<24>::new(-v / 3.0).unwrap();
+            let exact2 = exact + y as f64 * d.to_f64();
+            let got2 = mac2(c, Pu::from_bits(x), d, Pu::from_bits(y)).to_bits() as f64;
+            if exact2.abs() < 2.1e9 {
+                prop_assert!((got2 - exact2).abs() <= 0.5 + 1e-6 * exact2.abs() * 1e-9);
+            }
+        }
+
         #[test]
         fn wide_multiply_from_halves_is_exact(a in any::<i32>(), b in any::<i32>()) {
             prop_assert_eq!(wmul_halves(a, b), a as i64 * b as i64);
