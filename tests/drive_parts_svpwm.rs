@@ -20,7 +20,7 @@ fn ab(v: [f64; 2]) -> AlphaBeta {
 
 /// Random vectors up to 1.5× the circle, random angles, buses from 0.2 to 2× nominal: the
 /// voltage rebuilt from the duties is within 1 LSB of the f64 reference in the linear range
-/// (measured 0.65 LSB) and within 4 LSB on the circle (measured 1.7 LSB); the saturation flags
+/// (measured 0.63 LSB) and within 4 LSB on the circle (measured 1.6 LSB); the saturation flags
 /// agree except within 1e−6 of the circle; the duties of the fixed and f64 modulators differ
 /// by less than 5e−7 of the period (measured 2.7e−7).
 #[test]
@@ -72,7 +72,7 @@ fn rebuilt_voltage_matches_f64() {
 
 /// The circle limit keeps the angle: for requests 1.01× to 10× the circle, the commanded
 /// vector has length V_DC/√3 within 4 LSB (measured 0.7) and the request's angle within
-/// 1e−7 rad (measured 5.5e−8 rad: 1 LSB of a 1 pu vector is 6e−8 rad).
+/// 1e−7 rad (measured 4.1e−8 rad: 1 LSB of a 1 pu vector is 6e−8 rad).
 #[test]
 fn circle_limit_keeps_the_angle() {
     let cfg = SvpwmConfig::default();

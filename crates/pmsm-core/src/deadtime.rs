@@ -37,17 +37,16 @@
 //!
 //! # Formats
 //!
-//! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM`: [`WideGain`];
+//! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM`: [`Coef<31>`](crate::num::Coef) (below 0.1);
 //! `16/i_band`: [`Gain`]. `s_x`: Q4.28 in [−1, 1] (a current more than `i_band` from zero is
 //! ±1 without a product). `V_dt` is formed as the Clarke transform of the signs, scaled once:
 //! `α = V_dead (2s_a − s_b − s_c)/3`, `β = V_dead (s_b − s_c)/√3` (the sign sums exact in
 //! Q4.28, their scaled values in Q2.30, one rounding to [`Pu`]); within 2 LSB of the f64
 //! formula.
 
-use crate::control::WideGain;
 use crate::error::ConfigError;
 use crate::frames::{Abc, AlphaBeta, inverse_clarke};
-use crate::num::{Gain, Pu, Unit, mul_unit, pu_from_f64, round_shift_sat, wmul};
+use crate::num::{Coef, Gain, Pu, Unit, mul_unit, pu_from_f64, round_shift_sat, wmul};
 use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative};
 use crate::units::PerUnit;
 
@@ -131,7 +130,7 @@ impl DeadTimeDesign {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DeadTimeConfig {
     /// `T_eff f_PWM` (dimensionless): the part of `V_dead` proportional to the bus.
-    k_bus: WideGain,
+    k_bus: Coef<31>,
     /// `[(V_sat + V_f)/2 − T_eff f_PWM (V_sat − V_f)] / V_b`.
     v_const: Pu,
     /// `16/i_band`, per unit: a [`Pu`] current times it is its sign `sat(i/i_band)` in Q4.28.
@@ -179,16 +178,14 @@ impl DeadTimeConfig {
             10.0 * base.current_a,
         )?;
         let v_const = 0.5 * (d.v_sat_v + d.v_f_v) - k * (d.v_sat_v - d.v_f_v);
-        let gain = |key, v| {
-            WideGain::new(v).ok_or(ConfigError::Gain {
-                key,
-                value: v,
-                min: 0.0,
-                max: 1e6,
-            })
-        };
         Ok(Self {
-            k_bus: gain("dead_time_s", k)?,
+            // k ∈ [0, 0.1) (checked above): Q1.31 holds it to 4.7e−10.
+            k_bus: Coef::new(k).ok_or(ConfigError::Gain {
+                key: "dead_time_s",
+                value: k,
+                min: 0.0,
+                max: 0.1,
+            })?,
             v_const: pu_from_f64(v_const / base.voltage_v),
             inv_band: Gain::new(16.0 * base.current_a / band).ok_or(ConfigError::Gain {
                 key: "deadtime.band_a",

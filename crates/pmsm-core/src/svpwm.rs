@@ -16,9 +16,10 @@
 //! # Limit
 //!
 //! Beyond `m · V_DC/√3` (`m ≤ 1` a configurable margin, e.g. for minimum pulse widths) the
-//! vector is scaled onto the circle **keeping its angle** (CORDIC magnitude and angle, then
-//! `V_max (cos φ, sin φ)`), and `saturated` is set for the current loops' anti-windup. The
-//! vector actually commanded is returned for them and for the estimators.
+//! vector is scaled onto the circle **keeping its angle** (both components times
+//! `V_max/|v|`, from an exact test on the squared length and a Newton reciprocal square root),
+//! and `saturated` is set for the current loops' anti-windup. The vector actually commanded is
+//! returned for them and for the estimators.
 //!
 //! A bus at or below `vdc_min` (default 1 % of nominal) gives duties ½ (all legs at the same
 //! average: zero voltage), a zero vector and the `bus_low` flag; nothing divides by zero.
@@ -29,20 +30,19 @@
 //! |---|---|---|
 //! | `v`, `v_dc` | [`Pu`] Q8.24 of `V_b = V_DC,nom/√3` | `v_dc` = √3 at the nominal bus |
 //! | duties | [`Unit`] Q2.30 | [0, 1] (clamped; 1 LSB = 9.3e−10 of the period) |
-//! | `1/v_dc` | Q.30 in `i64` | one `i64` division per new bus reading ([`BusReciprocal`]) |
+//! | `1/v_dc` | normalised mantissa in `[2³⁰, 2³¹)` and a shift | one 32-bit division and two Newton steps per new bus reading ([`BusReciprocal`]) |
 //!
 //! Accuracy: the average voltage rebuilt from the duties matches an f64 model within 1 LSB of
-//! [`Pu`] in the linear range (measured 0.65) and 4 LSB on the circle (measured 1.7), tests in
+//! [`Pu`] in the linear range (measured 0.63) and 4 LSB on the circle (measured 1.6), tests in
 //! `tests/drive_parts_svpwm.rs`.
 
-use crate::cordic::polar;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, inverse_clarke};
-use crate::num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul_unit, pu_from_f64, round_shift_sat};
+use crate::num::{Pu, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, sat_i32, umul, wmul};
 use crate::params::in_range;
 
 /// `1/√3` in Q1.31 (rounded).
-const INV_SQRT3_Q31: i64 = 1_239_850_262;
+const INV_SQRT3_Q31: i32 = 1_239_850_262;
 
 /// Default smallest bus voltage the modulator divides by: 1 % of nominal, per unit.
 pub const DEFAULT_VDC_MIN_PU: f64 = 0.01 * 1.732_050_807_568_877_2;
@@ -51,7 +51,7 @@ pub const DEFAULT_VDC_MIN_PU: f64 = 0.01 * 1.732_050_807_568_877_2;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SvpwmConfig {
     /// `m/√3` in Q1.31.
-    vmax_per_vdc_q31: i64,
+    vmax_per_vdc_q31: i32,
     /// Below this bus, duties ½ and `bus_low`.
     vdc_min: Pu,
     /// The margin `m`.
@@ -76,7 +76,7 @@ impl SvpwmConfig {
         let m = in_range("svpwm.modulation", modulation, 0.5, 1.0)?;
         let vmin = in_range("svpwm.vdc_min_pu", vdc_min_pu, 1e-4, 1.0)?;
         Ok(Self {
-            vmax_per_vdc_q31: libm::round(m / libm::sqrt(3.0) * 2_147_483_648.0) as i64,
+            vmax_per_vdc_q31: libm::round(m / libm::sqrt(3.0) * 2_147_483_648.0) as i32,
             vdc_min: pu_from_f64(vmin),
             modulation: m,
         })
@@ -88,7 +88,7 @@ impl SvpwmConfig {
             Pu::ZERO
         } else {
             Pu::from_bits(round_shift_sat(
-                vdc.to_bits() as i64 * self.vmax_per_vdc_q31,
+                wmul(vdc.to_bits(), self.vmax_per_vdc_q31),
                 31,
             ))
         }
@@ -113,30 +113,18 @@ impl SvpwmConfig {
                 bus_low: true,
             };
         }
-        let inv = cache.get(vdc);
         let v_max = self.v_max(vdc);
-        let (v, saturated) = if clearly_inside(v, v_max) {
-            // Far inside the circle: the CORDIC test of `limit` would find the same, so the
-            // result is bit for bit the same without the 28 CORDIC iterations.
-            (v, false)
-        } else {
-            limit(v, v_max)
-        };
+        let (v, saturated) = limit(v, v_max);
         let ph = inverse_clarke(v);
-        let (a, b, c) = (
-            ph.a.to_bits() as i64,
-            ph.b.to_bits() as i64,
-            ph.c.to_bits() as i64,
-        );
-        let hi = a.max(b).max(c);
-        let lo = a.min(b).min(c);
-        // 2 (v_x + v_0) = 2 v_x − (max + min): exact in Q8.25.
-        let off = hi + lo;
-        // d = ½ + (2 v_x − off)/2 · inv: Q8.25 · Q.30 = Q.55 → Q2.30 (shift 25).
-        let duty = |x: i64| -> Unit {
-            let num = (2 * x - off) * inv; // |2x − off| ≤ 2^33, inv ≤ 2^38: below 2^63 after the
-            // bus check (v_dc ≥ 2^-9 pu gives inv ≤ 2^39 and |v| ≤ v_dc/√3 after the limit).
-            let d = round_shift_sat(num, PU_FRAC + 1).saturating_add(1 << (UNIT_FRAC - 1));
+        let (a, b, c) = (ph.a.to_bits(), ph.b.to_bits(), ph.c.to_bits());
+        let hi = a.max(b).max(c) as i64;
+        let lo = a.min(b).min(c) as i64;
+        let inv = cache.get(vdc);
+        // d = ½ + (v_x + v_0)/v_dc = ½ + (2 v_x − max − min)/(2 v_dc); the numerator is exact
+        // in i64 and at most v_dc ≤ 2³¹ in magnitude after the limit (saturated otherwise).
+        let duty = |x: i32| -> Unit {
+            let num = sat_i32(2 * x as i64 - hi - lo);
+            let d = inv.scale(num).saturating_add(1 << (UNIT_FRAC - 1));
             Unit::from_bits(d.clamp(0, 1 << UNIT_FRAC))
         };
         SvpwmOutput {
@@ -152,61 +140,118 @@ impl SvpwmConfig {
     }
 }
 
-/// `1/v_dc` in Q.30 (`⌊2⁵⁴/v_dc⌋` of the bits) for the last bus reading seen: one `i64`
-/// division per change of the reading instead of one per call (the result is the same bits).
+/// `2²⁹/v_dc` of the bits for the last bus reading seen, as a normalised mantissa `r` in
+/// `[2³⁰, 2³¹)` and a shift: `num · 2²⁹/v_dc = (num · r) >> shift`, so a duty is one
+/// product and a shift. Recomputed only when the reading changes: a normalisation, one 32-bit
+/// division for 16 bits and two Newton steps for the rest, no 64-bit division.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BusReciprocal {
-    /// The bus reading (bits of [`Pu`]) `inv` belongs to; 0 when empty (never a valid bus).
+    /// The bus reading (bits of [`Pu`]) `r` belongs to; 0 when empty (never a valid bus).
     vdc: i32,
-    inv: i64,
+    /// `⌊2⁶¹/v_n⌋` (within 2 LSB), `v_n` the reading shifted into `[2³⁰, 2³¹)`.
+    r: i32,
+    /// `33 − n`, `n` the leading zeros of the reading (2..=32 for a positive reading).
+    shift: u32,
 }
 
 impl BusReciprocal {
-    /// `⌊2⁵⁴/v_dc⌋` for a bus `vdc > 0`: from the cache when `vdc` is the last reading, else
-    /// divided and stored (0 for `vdc ≤ 0`, which the modulator never passes).
+    /// The reciprocal of a bus `vdc > 0`: from the cache when `vdc` is the last reading, else
+    /// computed and stored (a reading `≤ 0`, which the modulator never passes, gives 0).
     #[inline]
-    pub fn get(&mut self, vdc: Pu) -> i64 {
+    pub fn get(&mut self, vdc: Pu) -> Self {
         let bits = vdc.to_bits();
-        if bits != self.vdc || bits == 0 {
-            self.inv = (1i64 << (PU_FRAC + UNIT_FRAC))
-                .checked_div(bits as i64)
-                .unwrap_or(0);
-            self.vdc = bits;
+        if bits != self.vdc {
+            *self = Self::of(bits);
         }
-        self.inv
+        *self
+    }
+
+    fn of(bits: i32) -> Self {
+        if bits <= 0 {
+            return Self {
+                vdc: bits,
+                r: 0,
+                shift: 32,
+            };
+        }
+        let n = bits.leading_zeros(); // 1..=31
+        let vn = (bits as u32) << (n - 1); // [2^30, 2^31)
+        // 16 bits from a 32-bit division: q ≈ 2⁴⁸/v_n, r₀ = q·2¹³ ≈ 2⁶¹/v_n (≤ 2³¹).
+        let q = u32::MAX / (vn >> 16);
+        let mut r = ((q as i64) << 13).min(i32::MAX as i64) as i32;
+        // Newton on f(r) = 1/r − v_n/2⁶¹: r ← r + r·(2⁶¹ − v_n r)/2⁶¹; each step squares the
+        // relative error (2⁻¹⁴ → 2⁻²⁸ → below the 2⁻³¹ of the arithmetic). The residual
+        // |2⁶¹ − v_n r| < 2⁴⁸ is taken to 2⁻²⁹ first so the product stays in i64.
+        for _ in 0..2 {
+            let e = (((1i64 << 61) - wmul(vn as i32, r)) >> 29) as i32;
+            r = sat_i32(r as i64 + (wmul(r, e) >> 32));
+        }
+        Self {
+            vdc: bits,
+            r: r.max(0),
+            shift: 33 - n,
+        }
+    }
+
+    /// `num · 2²⁹/v_dc`, rounded and saturated: the duty offset of a leg in Q2.30 for
+    /// `num = 2 v_x − max − min` in the bits of [`Pu`].
+    #[inline(always)]
+    fn scale(self, num: i32) -> i32 {
+        round_shift_sat(wmul(num, self.r), self.shift)
     }
 }
 
-/// `|v| < v_max (1 − 2⁻¹²)`, exactly (squares in `u64`: each component's magnitude is at
-/// most 2³¹, so each square is at most 2⁶² and their sum fits). The margin, 2.4e−4 of
-/// `v_max`, is far beyond the CORDIC magnitude's error (3e−7 relative, `docs/PERFORMANCE.md`),
-/// so a vector accepted here is one that [`limit`] leaves unchanged.
+/// `1/√X` in Q2.30 at the centres of 24 intervals of `X ∈ [1/4, 1)` (seed of [`rsqrt`]).
+const RSQRT_SEED: [u32; 24] = [
+    2083365155, 1970666148, 1874477404, 1791125178, 1717986918, 1653133683, 1595110809, 1542797797,
+    1495315679, 1451963954, 1412176548, 1375490368, 1341522400, 1309952745, 1280511845, 1252970736,
+    1227133513, 1202831433, 1179918260, 1158266544, 1137764631, 1118314230, 1099828424, 1082230034,
+];
+
+/// `2³⁰/√X` for `x = X·2³²`, `x ∈ [2³⁰, 2³²)`: a table seed within 3 %, then three Newton
+/// steps `y ← y (3 − X y²)/2`, each squaring the relative error (3 % → 1.4e−3 → 2.7e−6 →
+/// the 2⁻³⁰ of the arithmetic). Newton from either side ends below `1/√X`, so the result
+/// never exceeds it by more than the seed's rounding.
 #[inline]
-fn clearly_inside(v: AlphaBeta, v_max: Pu) -> bool {
-    let a = v.alpha.to_bits().unsigned_abs() as u64;
-    let b = v.beta.to_bits().unsigned_abs() as u64;
-    let r = v_max.to_bits().max(0) as u64;
-    let r = r - (r >> 12);
-    a * a + b * b < r * r
+fn rsqrt(x: u32) -> u32 {
+    let k = ((x >> 27) as usize).saturating_sub(8);
+    let mut y = RSQRT_SEED.get(k).copied().unwrap_or(1 << 30);
+    for _ in 0..3 {
+        // X y² in Q2.30 (y² in Q3.29 first: y ≤ 2.02 · 2³⁰).
+        let y2 = (umul(y, y) >> 31) as u32;
+        let xy2 = (umul(x, y2) >> 31) as u32;
+        let f = (3u32 << 30).saturating_sub(xy2);
+        y = (umul(y, f) >> 31) as u32;
+    }
+    y
 }
 
-/// `v` limited to the circle of radius `v_max` keeping its angle (CORDIC magnitude and
-/// angle), and whether it was limited.
+/// `v` limited to the circle of radius `v_max` keeping its angle, and whether it was
+/// limited: the test is exact (squares in `u64`), the scale `v_max/|v| < 1` comes from
+/// [`rsqrt`] of the normalised squared length, in Q1.31, truncated so the result never
+/// leaves the circle by more than the rounding of its components.
 fn limit(v: AlphaBeta, v_max: Pu) -> (AlphaBeta, bool) {
-    let p = polar(v.alpha, v.beta);
-    if p.magnitude > v_max {
-        // Onto the circle, same angle.
-        let sc = p.angle.sin_cos();
-        (
-            AlphaBeta {
-                alpha: mul_unit(v_max, sc.cos),
-                beta: mul_unit(v_max, sc.sin),
-            },
-            true,
-        )
-    } else {
-        (v, false)
+    let (a, b) = (v.alpha.to_bits(), v.beta.to_bits());
+    let (ua, ub) = (a.unsigned_abs(), b.unsigned_abs());
+    // Each square ≤ 2⁶², the sum < 2⁶³.
+    let m2 = umul(ua, ua) + umul(ub, ub);
+    let r = v_max.to_bits().max(0) as u32;
+    if m2 <= umul(r, r) {
+        return (v, false);
     }
+    // m2 = X·2⁶⁴·2^−e with X ∈ [1/4, 1), e even: |v| = √X · 2^(32 − e/2).
+    let e = m2.leading_zeros() & !1;
+    let x = ((m2 << e) >> 32) as u32;
+    let y = rsqrt(x); // 2³⁰/√X
+    // k = v_max/|v| = v_max y 2^(e/2 − 62); in Q1.31: (v_max y) >> (31 − e/2), below 2³¹.
+    let k = (umul(r, y) >> (31 - e / 2)).min(i32::MAX as u64) as i32;
+    (
+        AlphaBeta {
+            alpha: Pu::from_bits(round_shift_sat(wmul(a, k), 31)),
+            beta: Pu::from_bits(round_shift_sat(wmul(b, k), 31)),
+        },
+        true,
+    )
 }
 
 /// Duties of the three legs, Q2.30 in [0, 1]: the fraction of the PWM period each high-side
@@ -293,6 +338,24 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn bus_reciprocal_within_two_ulp(bits in 1i32..=i32::MAX, num in any::<i32>()) {
+            let r = BusReciprocal::of(bits);
+            let exact = num as f64 * (1u64 << 29) as f64 / bits as f64;
+            let got = r.scale(num) as f64;
+            if exact.abs() < 2.1e9 {
+                // 2⁻³⁰ relative from the mantissa, half an LSB from the rounding.
+                prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
+            }
+        }
+
+        #[test]
+        fn rsqrt_within_four_lsb(x in (1u32 << 30)..=u32::MAX) {
+            let exact = (1u64 << 30) as f64 / (x as f64 / 4_294_967_296.0).sqrt();
+            let got = rsqrt(x) as f64;
+            prop_assert!((got - exact).abs() <= 4.0, "{} {}", got, exact);
+        }
+
         /// Any input: duties in [0, 1] and the commanded vector inside the circle (within 2 LSB
         /// and the 1e−8 relative error of the CORDIC magnitude).
         #[test]

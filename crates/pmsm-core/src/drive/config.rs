@@ -159,8 +159,8 @@ pub struct DriveConfig {
     pub(crate) estimator: AnyEstimator,
     pub(crate) current: CurrentConfig,
     pub(crate) speed: SpeedConfig,
-    /// Pole of the speed filter, `1 − exp(−ω_f T_s)`.
-    pub(crate) speed_filter: crate::num::Gain,
+    /// Pole of the speed filter, `1 − exp(−ω_f T_s)`; `None`: no filter.
+    pub(crate) speed_filter: Option<crate::num::Coef<30>>,
     pub(crate) deadtime: DeadTimeConfig,
     pub(crate) svpwm: SvpwmConfig,
     pub(crate) ipd: IpdConfig,
@@ -177,8 +177,9 @@ pub(crate) struct OpenLoopConfig {
     pub accel: Pu,
     pub handover_speed: Pu,
     pub align_samples: u32,
-    /// Rotation per sample, angle LSB per LSB of per-unit speed.
-    pub turn_per_speed: crate::num::Gain,
+    /// Rotation per sample, angle LSB per LSB of per-unit speed (`ω_b T_s 2⁸/(2π)`, below
+    /// 128 for any `ω_b T_s < π`).
+    pub turn_per_speed: crate::num::Coef<24>,
 }
 
 /// [`Protection`] in per unit.
@@ -229,20 +230,17 @@ impl DriveConfig {
             current: CurrentConfig::new(motor, &base, design.current)?,
             speed: SpeedConfig::new(motor, &base, design.speed)?,
             speed_filter: match design.speed_filter_rad_s {
-                None => crate::num::Gain::new(1.0).ok_or(ConfigError::Gain {
-                    key: "speed_filter_rad_s",
-                    value: 1.0,
-                    min: 0.0,
-                    max: 0.0,
-                })?,
+                None => None,
                 Some(w) => {
                     let w = in_range("speed_filter_rad_s", w, 1e-3, 2.0 / ts)?;
-                    crate::num::Gain::new(1.0 - libm::exp(-w * ts)).ok_or(ConfigError::Gain {
-                        key: "speed_filter_rad_s",
-                        value: w,
-                        min: 1e-3,
-                        max: 2.0 / ts,
-                    })?
+                    Some(crate::num::Coef::new(1.0 - libm::exp(-w * ts)).ok_or(
+                        ConfigError::Gain {
+                            key: "speed_filter_rad_s",
+                            value: w,
+                            min: 1e-3,
+                            max: 2.0 / ts,
+                        },
+                    )?)
                 }
             },
             deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,
@@ -253,14 +251,15 @@ impl DriveConfig {
                 accel: pu_from_f64(ol.accel_rad_s2 * ts / base.omega_e_rad_s),
                 handover_speed: pu_from_f64(ol.handover_speed_rad_s / base.omega_e_rad_s),
                 align_samples: libm::round(ol.align_time_s / ts) as u32,
-                turn_per_speed: crate::num::Gain::new(
+                turn_per_speed: crate::num::Coef::new(
                     base.omega_e_rad_s * ts / (Angle::RAD_PER_LSB * (1u64 << 24) as f64),
                 )
                 .ok_or(ConfigError::Gain {
                     key: "sample_hz",
                     value: sample_hz,
-                    min: 0.0,
-                    max: 0.0,
+                    // The rotation per sample at 1 pu must stay below 128 LSB per LSB.
+                    min: base.omega_e_rad_s / (128.0 * Angle::RAD_PER_LSB * (1u64 << 24) as f64),
+                    max: f64::INFINITY,
                 })?,
             },
             monitor: {

@@ -277,10 +277,13 @@ impl Drive {
         // The estimator always sees the period that just ended.
         let estimate = self.estimator.update(&ObserverInput { i, v: self.v_est });
         self.telemetry.estimate = estimate;
-        let delta = estimate.omega.saturating_sub(self.speed_filtered);
-        self.speed_filtered = self
-            .speed_filtered
-            .saturating_add(self.config.speed_filter.apply(delta));
+        self.speed_filtered = match self.config.speed_filter {
+            Some(pole) => {
+                let delta = estimate.omega.saturating_sub(self.speed_filtered);
+                self.speed_filtered.saturating_add(pole.apply(delta))
+            }
+            None => estimate.omega,
+        };
         let signals = monitor::Signals {
             i_abc: input.i_abc,
             i,

@@ -14,18 +14,19 @@
 
 use super::Fault;
 use crate::frames::{Abc, AlphaBeta};
-use crate::num::{Gain, Pu, mul, pu_from_f64};
+use crate::num::{Coef, Pu, pu_from_f64, umul};
 
 /// Thresholds and filter poles, per unit and in samples.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MonitorConfig {
     pub sum_limit: Pu,
-    pub ms1: Gain,
-    pub ms2: Gain,
-    pub ms10: Gain,
+    pub ms1: Coef<30>,
+    pub ms2: Coef<30>,
+    pub ms10: Coef<30>,
     pub stuck_samples: u32,
     pub turning: Pu,
-    pub min_current: Pu,
+    /// Square of the least current length (bits of [`Pu`], squared) for the open-phase test.
+    pub min_current_sq: u64,
     pub stall_samples: u32,
     /// 90 % of the speed loop's current limit, per unit.
     pub stall_current: Pu,
@@ -45,7 +46,7 @@ impl MonitorConfig {
         max_accel_rad_s2: f64,
         current_limit_pu: f64,
     ) -> Option<Self> {
-        let pole = |tau: f64| Gain::new(1.0 - libm::exp(-ts / tau));
+        let pole = |tau: f64| Coef::new(1.0 - libm::exp(-ts / tau));
         Some(Self {
             sum_limit: pu_from_f64(0.15),
             ms1: pole(1e-3)?,
@@ -53,7 +54,10 @@ impl MonitorConfig {
             ms10: pole(10e-3)?,
             stuck_samples: libm::ceil(0.05 / ts) as u32,
             turning: pu_from_f64(0.02),
-            min_current: pu_from_f64(0.02),
+            min_current_sq: {
+                let m = pu_from_f64(0.02).to_bits() as u32;
+                umul(m, m)
+            },
             stall_samples: libm::ceil(0.15 / ts) as u32,
             stall_current: pu_from_f64(0.9 * current_limit_pu),
             accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts / omega_b),
@@ -132,11 +136,15 @@ impl Monitor {
         }
         self.last_bits = bits;
         // Open phase: one phase current stays near zero while the vector is long and turns.
-        let length = crate::cordic::polar(s.i.alpha, s.i.beta).magnitude;
-        if s.running && turning && length > c.min_current {
-            let small = mul(length, pu_from_f64(0.05));
+        // Squared lengths in u64 (bits of Pu): no square root on the control path.
+        let (ia, ib) = (
+            s.i.alpha.to_bits().unsigned_abs(),
+            s.i.beta.to_bits().unsigned_abs(),
+        );
+        let length_sq = umul(ia, ia) + umul(ib, ib);
+        if s.running && turning && length_sq > c.min_current_sq {
             for (k, (x, m)) in ph.iter().zip(self.near_zero.iter_mut()).enumerate() {
-                let hit = if x.saturating_abs() < small {
+                let hit = if near_zero(*x, length_sq) {
                     Pu::ONE
                 } else {
                     Pu::ZERO
@@ -179,4 +187,17 @@ impl Monitor {
         }
         None
     }
+}
+
+/// `|x| < 0.05 |i|`, as `400 x² < |i|²` in `u64` (bits of [`Pu`]). A phase current of
+/// `2²⁷` bits (8 pu) or more counts as not near zero (the vector would have to exceed 160 pu,
+/// far beyond any overcurrent trip).
+#[inline(always)]
+fn near_zero(x: Pu, length_sq: u64) -> bool {
+    let a = x.to_bits().unsigned_abs();
+    if a >= 1 << 27 {
+        return false;
+    }
+    let x2 = umul(a, a); // < 2⁵⁴, so 400 x² < 2⁶³
+    (x2 << 8) + (x2 << 7) + (x2 << 4) < length_sq
 }
