@@ -95,15 +95,15 @@ impl SvpwmConfig {
     }
 
     /// Duties for the stationary voltage `v` on the bus `vdc` (both per unit of `V_b`).
-    /// Integer only; never panics. Divides by the bus at every call; a caller that modulates
+    /// Integer only; never panics. Takes the bus's reciprocal at every call; a caller that modulates
     /// every sample keeps a [`BusReciprocal`] and calls [`SvpwmConfig::modulate_cached`].
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
         self.modulate_cached(v, vdc, &mut BusReciprocal::default())
     }
 
-    /// [`SvpwmConfig::modulate`], bit for bit, with `1/v_dc` taken from `cache` when the bus
-    /// reading is the one it was computed for (the `i64` division is most of the cost of a
-    /// call) and recomputed and stored otherwise.
+    /// [`SvpwmConfig::modulate`], bit for bit, with `1/v_dc` and the circle's radius taken
+    /// from `cache` when the bus reading is the one they were computed for (a 32-bit division
+    /// and four products saved) and recomputed and stored otherwise.
     pub fn modulate_cached(&self, v: AlphaBeta, vdc: Pu, cache: &mut BusReciprocal) -> SvpwmOutput {
         if vdc <= self.vdc_min {
             return SvpwmOutput {
@@ -113,18 +113,17 @@ impl SvpwmConfig {
                 bus_low: true,
             };
         }
-        let v_max = self.v_max(vdc);
-        let (v, saturated) = limit(v, v_max);
+        let bus = cache.get(vdc, self);
+        let (v, saturated) = limit(v, bus.v_max);
         let ph = inverse_clarke(v);
         let (a, b, c) = (ph.a.to_bits(), ph.b.to_bits(), ph.c.to_bits());
         let hi = a.max(b).max(c) as i64;
         let lo = a.min(b).min(c) as i64;
-        let inv = cache.get(vdc);
         // d = ½ + (v_x + v_0)/v_dc = ½ + (2 v_x − max − min)/(2 v_dc); the numerator is exact
         // in i64 and at most v_dc ≤ 2³¹ in magnitude after the limit (saturated otherwise).
         let duty = |x: i32| -> Unit {
             let num = sat_i32(2 * x as i64 - hi - lo);
-            let d = inv.scale(num).saturating_add(1 << (UNIT_FRAC - 1));
+            let d = bus.scale(num).saturating_add(1 << (UNIT_FRAC - 1));
             Unit::from_bits(d.clamp(0, 1 << UNIT_FRAC))
         };
         SvpwmOutput {
@@ -140,28 +139,33 @@ impl SvpwmConfig {
     }
 }
 
-/// `2²⁹/v_dc` of the bits for the last bus reading seen, as a normalised mantissa `r` in
-/// `[2³⁰, 2³¹)` and a shift: `num · 2²⁹/v_dc = (num · r) >> shift`, so a duty is one
-/// product and a shift. Recomputed only when the reading changes: a normalisation, one 32-bit
-/// division for 16 bits and two Newton steps for the rest, no 64-bit division.
+/// What the modulator needs of the last bus reading seen: the circle's radius and `2²⁹/v_dc`
+/// of the bits as a normalised mantissa `r` in `[2³⁰, 2³¹)` and a pre-shift: `num · 2²⁹/v_dc
+/// = ((num << pre) · r) >> 32`, so a duty is one product whose high word is the result.
+/// Recomputed only when the reading changes: a normalisation, one 32-bit division for 16 bits
+/// and two Newton steps for the rest, no 64-bit division.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BusReciprocal {
-    /// The bus reading (bits of [`Pu`]) `r` belongs to; 0 when empty (never a valid bus).
+    /// The bus reading (bits of [`Pu`]) the rest belongs to; 0 when empty (never a valid bus).
     vdc: i32,
     /// `⌊2⁶¹/v_n⌋` (within 2 LSB), `v_n` the reading shifted into `[2³⁰, 2³¹)`.
     r: i32,
-    /// `33 − n`, `n` the leading zeros of the reading (2..=32 for a positive reading).
-    shift: u32,
+    /// `n − 1`, `n` the leading zeros of the reading (0..=30 for a positive reading).
+    pre: u32,
+    /// `m v_dc/√3`.
+    v_max: Pu,
 }
 
 impl BusReciprocal {
-    /// The reciprocal of a bus `vdc > 0`: from the cache when `vdc` is the last reading, else
-    /// computed and stored (a reading `≤ 0`, which the modulator never passes, gives 0).
+    /// The bus terms of `vdc > 0` for the modulator `m`: from the cache when `vdc` is the
+    /// last reading, else computed and stored (a reading `≤ 0`, which the modulator never
+    /// passes, gives 0).
     #[inline]
-    pub fn get(&mut self, vdc: Pu) -> Self {
+    fn get(&mut self, vdc: Pu, m: &SvpwmConfig) -> Self {
         let bits = vdc.to_bits();
-        if bits != self.vdc {
+        if bits != self.vdc || self.v_max == Pu::ZERO {
             *self = Self::of(bits);
+            self.v_max = m.v_max(vdc);
         }
         *self
     }
@@ -171,7 +175,8 @@ impl BusReciprocal {
             return Self {
                 vdc: bits,
                 r: 0,
-                shift: 32,
+                pre: 0,
+                v_max: Pu::ZERO,
             };
         }
         let n = bits.leading_zeros(); // 1..=31
@@ -189,15 +194,24 @@ impl BusReciprocal {
         Self {
             vdc: bits,
             r: r.max(0),
-            shift: 33 - n,
+            pre: n - 1,
+            v_max: Pu::ZERO,
         }
     }
 
     /// `num · 2²⁹/v_dc`, rounded and saturated: the duty offset of a leg in Q2.30 for
-    /// `num = 2 v_x − max − min` in the bits of [`Pu`].
+    /// `num = 2 v_x − max − min` in the bits of [`Pu`]. `num << pre` is exact for
+    /// `|num| < 2^(31 − pre)`, which holds for every leg inside the circle (`|num| ≤ v_dc`);
+    /// beyond it, it saturates and so does the duty.
     #[inline(always)]
     fn scale(self, num: i32) -> i32 {
-        round_shift_sat(wmul(num, self.r), self.shift)
+        let a = num << self.pre;
+        let a = if a >> self.pre == num {
+            a
+        } else {
+            (num >> 31) ^ i32::MAX
+        };
+        round_shift_sat(wmul(a, self.r), 32)
     }
 }
 
@@ -233,9 +247,13 @@ fn rsqrt(x: u32) -> u32 {
 fn limit(v: AlphaBeta, v_max: Pu) -> (AlphaBeta, bool) {
     let (a, b) = (v.alpha.to_bits(), v.beta.to_bits());
     let (ua, ub) = (a.unsigned_abs(), b.unsigned_abs());
+    let r = v_max.to_bits().max(0) as u32;
+    // |v| ≤ max + min/2 of the components' magnitudes: no product for most vectors.
+    if (ua.max(ub) as u64 + (ua.min(ub) / 2) as u64) < r as u64 {
+        return (v, false);
+    }
     // Each square ≤ 2⁶², the sum < 2⁶³.
     let m2 = umul(ua, ua) + umul(ub, ub);
-    let r = v_max.to_bits().max(0) as u32;
     if m2 <= umul(r, r) {
         return (v, false);
     }
@@ -340,6 +358,8 @@ mod tests {
     proptest! {
         #[test]
         fn bus_reciprocal_within_two_ulp(bits in 1i32..=i32::MAX, num in any::<i32>()) {
+            // The contract: |num| ≤ v_dc (a leg inside the circle).
+            let num = (num as i64 % (bits as i64 + 1)) as i32;
             let r = BusReciprocal::of(bits);
             let exact = num as f64 * (1u64 << 29) as f64 / bits as f64;
             let got = r.scale(num) as f64;

@@ -4,6 +4,10 @@
 //! is guarded so that a healthy run never trips it (tests: every shipped scenario and a sweep
 //! of random healthy ones).
 //!
+//! The filters are first-order with the pole a power of two (a shift, no product): their time
+//! constants below are rounded to a power of two of samples (at 14 kHz, 1 ms is 16 samples,
+//! 2 ms 32, 10 ms 128).
+//!
 //! | fault | evidence | time to trip |
 //! |---|---|---|
 //! | current sensor (sum) | `|i_a + i_b + i_c|` filtered over 1 ms above 0.15 `I_b` | 1–3 ms |
@@ -14,15 +18,17 @@
 
 use super::Fault;
 use crate::frames::{Abc, AlphaBeta};
-use crate::num::{Coef, Pu, pu_from_f64, umul};
+use crate::num::{Pu, pu_from_f64, umul};
 
 /// Thresholds and filter poles, per unit and in samples.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MonitorConfig {
     pub sum_limit: Pu,
-    pub ms1: Coef<30>,
-    pub ms2: Coef<30>,
-    pub ms10: Coef<30>,
+    /// Filters of 1, 2 and 10 ms as shifts: `y += (x − y) >> k`, the pole `2^−k` with the
+    /// time constant rounded to a power of two of samples (no product on the control path).
+    pub ms1: u32,
+    pub ms2: u32,
+    pub ms10: u32,
     pub stuck_samples: u32,
     pub turning: Pu,
     /// Square of the least current length (bits of [`Pu`], squared) for the open-phase test.
@@ -46,7 +52,11 @@ impl MonitorConfig {
         max_accel_rad_s2: f64,
         current_limit_pu: f64,
     ) -> Option<Self> {
-        let pole = |tau: f64| Coef::new(1.0 - libm::exp(-ts / tau));
+        // τ/T_s samples to the nearest power of two, 1 to 2²⁰ samples.
+        let pole = |tau: f64| {
+            let k = libm::round(libm::log2(tau / ts));
+            k.is_finite().then_some(k.clamp(0.0, 20.0) as u32)
+        };
         Some(Self {
             sum_limit: pu_from_f64(0.15),
             ms1: pole(1e-3)?,
@@ -106,9 +116,7 @@ impl Monitor {
             .saturating_add(s.i_abc.b)
             .saturating_add(s.i_abc.c)
             .saturating_abs();
-        self.sum = self
-            .sum
-            .saturating_add(c.ms1.apply(sum.saturating_sub(self.sum)));
+        self.sum = follow(self.sum, sum, c.ms1);
         if self.sum > c.sum_limit {
             return Some(Fault::CurrentSensor(None));
         }
@@ -149,7 +157,7 @@ impl Monitor {
                 } else {
                     Pu::ZERO
                 };
-                *m = m.saturating_add(c.ms10.apply(hit.saturating_sub(*m)));
+                *m = follow(*m, hit, c.ms10);
                 if *m > pu_from_f64(0.9) {
                     return Some(Fault::PhaseLoss(k as u8));
                 }
@@ -178,9 +186,7 @@ impl Monitor {
             && self.running_for > c.settle_samples
         {
             let step = s.omega.saturating_sub(last).saturating_abs();
-            self.jerk = self
-                .jerk
-                .saturating_add(c.ms2.apply(step.saturating_sub(self.jerk)));
+            self.jerk = follow(self.jerk, step, c.ms2);
             if self.jerk > c.accel_limit {
                 return Some(Fault::LossOfLock);
             }
@@ -200,4 +206,11 @@ fn near_zero(x: Pu, length_sq: u64) -> bool {
     }
     let x2 = umul(a, a); // < 2⁵⁴, so 400 x² < 2⁶³
     (x2 << 8) + (x2 << 7) + (x2 << 4) < length_sq
+}
+
+/// One step of the first-order filter `y += (x − y)·2^−k` (arithmetic shift: rounds toward
+/// −∞, so a filter of non-negative inputs settles within `2^k` LSB below its input).
+#[inline(always)]
+fn follow(y: Pu, x: Pu, k: u32) -> Pu {
+    y.saturating_add(Pu::from_bits(x.saturating_sub(y).to_bits() >> k))
 }
