@@ -37,16 +37,17 @@
 //!
 //! # Formats
 //!
-//! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM`: [`Coef<31>`](crate::num::Coef) (below 0.1);
-//! `16/i_band`: [`Gain`]. `s_x`: Q4.28 in [−1, 1] (a current more than `i_band` from zero is
-//! ±1 without a product). `V_dt` is formed as the Clarke transform of the signs, scaled once:
-//! `α = V_dead (2s_a − s_b − s_c)/3`, `β = V_dead (s_b − s_c)/√3` (the sign sums exact in
-//! Q4.28, their scaled values in Q2.30, one rounding to [`Pu`]); within 2 LSB of the f64
-//! formula.
+//! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM`:
+//! [`Coef<31>`](crate::num::Coef) (below 0.1); `16/i_band`: [`Gain`]. `s_x`: Q4.28 in [−1, 1]
+//! (a current more than `i_band` from zero is ±1 without a product). `V_dt` is formed as the
+//! Clarke transform of the signs, scaled once: `α = V_dead (2s_a − s_b − s_c)/3`,
+//! `β = V_dead (s_b − s_c)/√3` (the sign sums exact in Q4.28, `V_dead/3` and `V_dead/√3` in
+//! Q8.26, computed once per bus reading by [`DeadTimeBus`], one rounding to [`Pu`]); within
+//! 2 LSB of the f64 formula.
 
 use crate::error::ConfigError;
 use crate::frames::{Abc, AlphaBeta, inverse_clarke};
-use crate::num::{Coef, Gain, Pu, Unit, mul_unit, pu_from_f64, round_shift_sat, wmul};
+use crate::num::{Coef, Gain, Pu, pu_from_f64, round_shift_sat, wmul};
 use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative};
 use crate::units::PerUnit;
 
@@ -235,17 +236,37 @@ impl DeadTimeConfig {
     /// phases already has): `V_dt = clarke(V_dead · s)` written as the Clarke transform of the
     /// signs, `α = V_dead (2s_a − s_b − s_c)/3`, `β = V_dead (s_b − s_c)/√3`.
     pub fn error_vector_abc(&self, i: Abc, vdc: Pu) -> AlphaBeta {
-        let v = self.v_dead(vdc);
+        self.error_vector_abc_cached(i, vdc, &mut DeadTimeBus::default())
+    }
+
+    /// [`DeadTimeConfig::error_vector`] with the bus terms cached (see
+    /// [`DeadTimeConfig::error_vector_abc_cached`]).
+    pub fn error_vector_cached(&self, i: AlphaBeta, vdc: Pu, cache: &mut DeadTimeBus) -> AlphaBeta {
+        self.error_vector_abc_cached(inverse_clarke(i), vdc, cache)
+    }
+
+    /// [`DeadTimeConfig::error_vector_abc`], bit for bit, with the bus terms `V_dead/3` and
+    /// `V_dead/√3` taken from `cache` when `vdc` is the reading they were computed for.
+    pub fn error_vector_abc_cached(&self, i: Abc, vdc: Pu, cache: &mut DeadTimeBus) -> AlphaBeta {
+        let bits = vdc.to_bits();
+        if bits != cache.vdc || !cache.valid {
+            let v = self.v_dead(vdc).to_bits();
+            // V_dead/3 and V_dead/√3 in Q8.26 (the bits of 4/3 and 4/√3 times V_dead).
+            *cache = DeadTimeBus {
+                vdc: bits,
+                valid: true,
+                third: round_shift_sat(wmul(v, FOUR_THIRDS_Q30), 30),
+                inv_sqrt3: round_shift_sat(wmul(v, FOUR_INV_SQRT3_Q29), 29),
+            };
+        }
         let (sa, sb, sc) = (self.sign(i.a), self.sign(i.b), self.sign(i.c));
         // Q4.28, |s| ≤ 2²⁸: the sums are exact, |2s_a − s_b − s_c| ≤ 2³⁰, |s_b − s_c| ≤ 2²⁹.
         let s_alpha = 2 * sa - sb - sc;
         let s_beta = sb - sc;
-        // To Q2.30: (4/3) s_alpha ≤ 4/3 and (4/√3) s_beta ≤ 2/√3 in value, both below 2.
-        let u_alpha = round_shift_sat(wmul(s_alpha, FOUR_THIRDS_Q30), 30);
-        let u_beta = round_shift_sat(wmul(s_beta, FOUR_INV_SQRT3_Q29), 29);
+        // Q4.28 · Q8.26 = Q.54 → Q8.24: one product and one rounding per component.
         AlphaBeta {
-            alpha: mul_unit(v, Unit::from_bits(u_alpha)),
-            beta: mul_unit(v, Unit::from_bits(u_beta)),
+            alpha: Pu::from_bits(round_shift_sat(wmul(s_alpha, cache.third), 30)),
+            beta: Pu::from_bits(round_shift_sat(wmul(s_beta, cache.inv_sqrt3), 30)),
         }
     }
 
@@ -272,6 +293,18 @@ impl DeadTimeConfig {
             v_cmd
         }
     }
+}
+
+/// The bus terms of the dead-time vector for the last bus reading seen (see
+/// [`DeadTimeConfig::error_vector_abc_cached`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeadTimeBus {
+    vdc: i32,
+    valid: bool,
+    /// `V_dead/3`, Q8.26.
+    third: i32,
+    /// `V_dead/√3`, Q8.26.
+    inv_sqrt3: i32,
 }
 
 /// One in Q4.28 (the format of the signs).

@@ -26,7 +26,7 @@ pub use config::{DriveConfig, DriveDesign, OpenLoopDesign, Protection, StartupMo
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
 use crate::control::speed::SpeedController;
-use crate::deadtime::CurrentSource;
+use crate::deadtime::{CurrentSource, DeadTimeBus};
 use crate::frames::{Abc, AlphaBeta, Dq, clarke, inverse_park, park};
 use crate::ipd::{Ipd, IpdFault, IpdResult};
 use crate::num::Pu;
@@ -154,8 +154,10 @@ pub struct Drive {
     monitor: monitor::Monitor,
     /// The speed loop's current reference at the last sample.
     iq_ref: Pu,
-    /// `1/v_dc` of the last bus reading, for the modulator.
+    /// `1/v_dc` and the voltage circle of the last bus reading, for the modulator.
     inv_vdc: BusReciprocal,
+    /// `V_dead/3`, `V_dead/√3` of the last bus reading, for the dead-time vector.
+    deadtime_bus: DeadTimeBus,
 }
 
 impl Drive {
@@ -177,6 +179,7 @@ impl Drive {
             monitor: monitor::Monitor::default(),
             iq_ref: Pu::ZERO,
             inv_vdc: BusReciprocal::default(),
+            deadtime_bus: DeadTimeBus::default(),
         }
     }
 
@@ -412,8 +415,15 @@ impl Drive {
         let v_ref = inverse_park(out.v, sc_mid);
         // The measured phase currents go to the signs as sampled (no Clarke round trip).
         let v_dt = match c.deadtime.design.source {
-            CurrentSource::Measured => c.deadtime.error_vector_abc(i_abc, vdc),
-            CurrentSource::Reference => c.deadtime.error_vector(inverse_park(i_ref, sc_mid), vdc),
+            CurrentSource::Measured => {
+                c.deadtime
+                    .error_vector_abc_cached(i_abc, vdc, &mut self.deadtime_bus)
+            }
+            CurrentSource::Reference => c.deadtime.error_vector_cached(
+                inverse_park(i_ref, sc_mid),
+                vdc,
+                &mut self.deadtime_bus,
+            ),
         };
         let m = c
             .svpwm
