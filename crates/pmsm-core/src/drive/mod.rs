@@ -29,7 +29,7 @@ use crate::control::speed::SpeedController;
 use crate::deadtime::{CurrentSource, DeadTimeBus};
 use crate::frames::{Abc, AlphaBeta, Dq, clarke, inverse_park, park};
 use crate::ipd::{Ipd, IpdFault, IpdResult};
-use crate::num::Pu;
+use crate::num::{Pu, mul_unit};
 use crate::observer::{AnyEstimator, Estimate, Estimator, ObserverInput};
 use crate::svpwm::{BusReciprocal, Duties};
 use startup::OpenLoop;
@@ -419,11 +419,19 @@ impl Drive {
                 c.deadtime
                     .error_vector_abc_cached(i_abc, vdc, &mut self.deadtime_bus)
             }
-            CurrentSource::Reference => c.deadtime.error_vector_cached(
-                inverse_park(i_ref, sc_mid),
-                vdc,
-                &mut self.deadtime_bus,
-            ),
+            CurrentSource::Reference => {
+                // In Run the reference is on q alone: two products instead of four.
+                let i_ref_ab = if i_ref.d == Pu::ZERO {
+                    AlphaBeta {
+                        alpha: mul_unit(i_ref.q, sc_mid.sin.saturating_neg()),
+                        beta: mul_unit(i_ref.q, sc_mid.cos),
+                    }
+                } else {
+                    inverse_park(i_ref, sc_mid)
+                };
+                c.deadtime
+                    .error_vector_cached(i_ref_ab, vdc, &mut self.deadtime_bus)
+            }
         };
         let m = c
             .svpwm
