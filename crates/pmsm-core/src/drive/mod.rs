@@ -289,7 +289,6 @@ impl Drive {
         };
         let signals = monitor::Signals {
             i_abc: input.i_abc,
-            i,
             omega: estimate.omega,
             omega_ref: self.run_speed_ref(),
             iq_ref: self.iq_ref,

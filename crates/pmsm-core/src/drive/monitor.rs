@@ -12,13 +12,13 @@
 //! |---|---|---|
 //! | current sensor (sum) | `|i_a + i_b + i_c|` filtered over 1 ms above 0.15 `I_b` | 1–3 ms |
 //! | current sensor (stuck) | a phase reading the same bits for 50 ms while the rotor turns and another phase changes | 50 ms |
-//! | open phase | the current of one phase below 5 % of the vector's length in 90 % of the samples (filter 10 ms), with 2 % `I_b` flowing and the rotor turning | 25–35 ms |
+//! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (10 ms) below 5 % of the three's sum (a third when balanced) for 2 ms, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `1/τ` (`τ` the filter's time constant; 100 rad/s electrical at 10 ms) for `2τ`, at any load | 30–40 ms (no load; under load the loss-of-lock check is often first) |
 //! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed below half the reference for 150 ms | 150 ms |
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
 
 use super::Fault;
-use crate::frames::{Abc, AlphaBeta};
-use crate::num::{Pu, pu_from_f64, umul};
+use crate::frames::Abc;
+use crate::num::{Pu, pu_from_f64};
 
 /// Thresholds and filter poles, per unit and in samples.
 #[derive(Clone, Copy, Debug)]
@@ -31,8 +31,17 @@ pub(crate) struct MonitorConfig {
     pub ms10: u32,
     pub stuck_samples: u32,
     pub turning: Pu,
-    /// Square of the least current length (bits of [`Pu`], squared) for the open-phase test.
-    pub min_current_sq: u64,
+    /// Least filtered `Σ i_x²` (in the Q8.12 squares of [`phase_power`]) for the phase-loss
+    /// test: (1 % of `I_b`)² times 3/2, the sum of a balanced 1 % current.
+    pub min_power: u32,
+    /// Least speed for the phase-loss test, per unit: `1/τ` of its filter (`τ` the 10 ms
+    /// filter), where the ripple of a balanced phase's filtered square is 45 % of its mean.
+    pub phase_loss_speed: Pu,
+    /// Samples a phase must stay below 5 % of the power before it trips (2 ms).
+    pub phase_loss_samples: u32,
+    /// Samples the test's conditions must hold before it counts: two time constants of its
+    /// filter.
+    pub phase_loss_arm_samples: u32,
     pub stall_samples: u32,
     /// 90 % of the speed loop's current limit, per unit.
     pub stall_current: Pu,
@@ -64,10 +73,15 @@ impl MonitorConfig {
             ms10: pole(10e-3)?,
             stuck_samples: libm::ceil(0.05 / ts) as u32,
             turning: pu_from_f64(0.02),
-            min_current_sq: {
-                let m = pu_from_f64(0.02).to_bits() as u32;
-                umul(m, m)
+            min_power: {
+                let m = 0.01 * 4096.0;
+                (1.5 * m * m) as u32
             },
+            phase_loss_speed: pu_from_f64(
+                1.0 / (ts * libm::ldexp(1.0, pole(10e-3)? as i32)) / omega_b,
+            ),
+            phase_loss_samples: libm::ceil(2e-3 / ts) as u32,
+            phase_loss_arm_samples: 2 << pole(10e-3)?,
             stall_samples: libm::ceil(0.15 / ts) as u32,
             stall_current: pu_from_f64(0.9 * current_limit_pu),
             accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts / omega_b),
@@ -82,7 +96,12 @@ pub(crate) struct Monitor {
     sum: Pu,
     last_bits: [i32; 3],
     same: [u32; 3],
-    near_zero: [Pu; 3],
+    /// Filtered `i_x²` of each phase (Q8.12 squares, see [`phase_power`]).
+    power: [u32; 3],
+    /// Samples each phase has been below 5 % of the total power.
+    weak: [u32; 3],
+    /// Samples the phase-loss test's conditions have held.
+    armed: u32,
     stall: u32,
     last_omega: Option<Pu>,
     jerk: Pu,
@@ -92,7 +111,6 @@ pub(crate) struct Monitor {
 /// What the checks look at, per sample.
 pub(crate) struct Signals {
     pub i_abc: Abc,
-    pub i: AlphaBeta,
     pub omega: Pu,
     pub omega_ref: Pu,
     /// The speed loop's current reference.
@@ -143,27 +161,36 @@ impl Monitor {
             }
         }
         self.last_bits = bits;
-        // Open phase: one phase current stays near zero while the vector is long and turns.
-        // Squared lengths in u64 (bits of Pu): no square root on the control path.
-        let (ia, ib) = (
-            s.i.alpha.to_bits().unsigned_abs(),
-            s.i.beta.to_bits().unsigned_abs(),
-        );
-        let length_sq = umul(ia, ia) + umul(ib, ib);
-        if s.running && turning && length_sq > c.min_current_sq {
-            for (k, (x, m)) in ph.iter().zip(self.near_zero.iter_mut()).enumerate() {
-                let hit = if near_zero(*x, length_sq) {
-                    Pu::ONE
-                } else {
-                    Pu::ZERO
-                };
-                *m = follow(*m, hit, c.ms10);
-                if *m > pu_from_f64(0.9) {
-                    return Some(Fault::PhaseLoss(k as u8));
-                }
-            }
+        // Phase loss: one phase carries under 5 % of the current's power (a third when
+        // balanced) while the rotor turns fast enough for the filter to average a period's
+        // ripple away. An open phase keeps its current at zero (noise only), whatever the load:
+        // the other two then carry ±the same current, and its share falls with the filter.
+        for (p, x) in self.power.iter_mut().zip(ph) {
+            let sq = phase_power(x);
+            *p = p.saturating_add_signed((sq.wrapping_sub(*p) as i32) >> c.ms10);
+        }
+        let total = self.power.iter().fold(0u32, |t, p| t.saturating_add(*p));
+        let fast = s.omega.saturating_abs() > c.phase_loss_speed;
+        // Armed once the conditions have held for two time constants: a current vector just
+        // built from nothing (a load step at no load) or a filter that has just come up to
+        // speed has not turned through every phase yet.
+        self.armed = if s.running && fast && total > c.min_power {
+            self.armed.saturating_add(1)
         } else {
-            self.near_zero = [Pu::ZERO; 3];
+            0
+        };
+        let armed = self.armed > c.phase_loss_arm_samples;
+        for (k, (p, weak)) in self.power.iter().zip(self.weak.iter_mut()).enumerate() {
+            // 20 p < total: u64 so that no product wraps.
+            let low = 20 * (*p as u64) < total as u64;
+            *weak = if armed && low {
+                weak.saturating_add(1)
+            } else {
+                0
+            };
+            if *weak > c.phase_loss_samples {
+                return Some(Fault::PhaseLoss(k as u8));
+            }
         }
         // Stall: at the current limit and far below the reference for 150 ms.
         let slow = s.omega.saturating_abs() < s.omega_ref.saturating_abs() / 2;
@@ -195,17 +222,13 @@ impl Monitor {
     }
 }
 
-/// `|x| < 0.05 |i|`, as `400 x² < |i|²` in `u64` (bits of [`Pu`]). A phase current of
-/// `2²⁷` bits (8 pu) or more counts as not near zero (the vector would have to exceed 160 pu,
-/// far beyond any overcurrent trip).
+/// `i²` of a phase current in Q8.12 squares (`(i·2¹²)²`, the current clamped to ±8 pu, far
+/// beyond any overcurrent trip): a 32-bit product on every core, and three of them sum
+/// below 2³² (each ≤ 2³⁰).
 #[inline(always)]
-fn near_zero(x: Pu, length_sq: u64) -> bool {
-    let a = x.to_bits().unsigned_abs();
-    if a >= 1 << 27 {
-        return false;
-    }
-    let x2 = umul(a, a); // < 2⁵⁴, so 400 x² < 2⁶³
-    (x2 << 8) + (x2 << 7) + (x2 << 4) < length_sq
+fn phase_power(i: Pu) -> u32 {
+    let a = (i.to_bits().unsigned_abs() >> 12).min(1 << 15);
+    a * a
 }
 
 /// One step of the first-order filter `y += (x − y)·2^−k` (arithmetic shift: rounds toward
