@@ -30,16 +30,31 @@
 //! stage, or a bus drop between the two), its `saturated` flag is fed back as
 //! [`CurrentInput::hold`] and stops both integrators from winding outward.
 //!
+//! The root is exact ([`circle_room`], `⌊√·⌋` to the LSB, a fixed ~60 instructions on a
+//! Cortex-M4) and is taken only when the q axis comes near the circle: the q PI first steps
+//! with the inner bound `V_max − |v_d|` (`(V_max − |v_d|)² ≤ V_max² − v_d²`), and only if a
+//! limit took part (`FastPi::step_inside`) steps again from the saved state with the root.
+//!
 //! # Formats
 //!
-//! Currents, voltages, speed: [`Pu`] (Q8.24). `L_d`, `L_q` (per unit, `= X/Z_b` at base
-//! speed), `m/√3`: [`WideGain`]. `V_max`: [`Pu`], ≤ 1.16 · `m` at nominal bus.
+//! | signal | format | range |
+//! |---|---|---|
+//! | currents, voltages, `ω`, `v_DC`, `ψ` | [`Pu`] Q8.24 | ±128 |
+//! | `L_d`, `L_q` (per unit, `= X/Z_b` at base speed) | [`Coef<24>`](Coef) | [2⁻⁸, 64] (envelope), resolution 6e−8 |
+//! | `m/√3` | [`Coef<31>`](Coef) | (0, 0.578] |
+//! | `K_p`, `K_i T_s` | [`FastPiConfig`] | `K_p` [2⁻⁹, 2¹⁴) pu, `K_i T_s` 0 or [2⁻²², 1) pu |
+//! | `V_max` | [`Pu`] | ≤ 1.16 · `m` at nominal bus |
+//!
+//! `K_p` up to 2¹⁴ covers the deadbeat gain `L/T_s` of every motor of the per-unit envelope;
+//! `K_i T_s < 1` per unit (`K_i T_s < Z_b`) is far above any useful design (the default is
+//! `0.05 R/Z_b`).
 
-use super::pi::{Limits, Pi, PiConfig};
-use super::{WideGain, circle_room, gain_in, wide_gain};
+use super::gain_in;
+use super::pi::{FastPi, FastPiConfig, coef_in};
+use super::{circle_room, frac_mul};
 use crate::error::ConfigError;
 use crate::frames::Dq;
-use crate::num::{Pu, mul, pu_from_f64};
+use crate::num::{Coef, Pu, mul, pu_from_f64};
 use crate::params::{MotorParams, in_range};
 use crate::units::PerUnit;
 
@@ -78,16 +93,16 @@ pub const DEFAULT_BANDWIDTH_TS: f64 = 0.05;
 /// Configuration of the [`CurrentController`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentConfig {
-    pi_d: PiConfig,
-    pi_q: PiConfig,
+    pi_d: FastPiConfig,
+    pi_q: FastPiConfig,
     /// `L_d` per unit.
-    ld: WideGain,
-    /// `L_q` per unit.
-    lq: WideGain,
+    ld: Coef<24>,
+    /// `−L_q` per unit (negated: `ff_d = −ω L_q i_q` without a negation per sample).
+    neg_lq: Coef<24>,
     /// `ψ` per unit.
     psi: Pu,
     /// `m/√3`: `V_max = m/√3 · v_DC` (both per unit of `V_b`).
-    vmax_per_vdc: WideGain,
+    vmax_per_vdc: Coef<31>,
     decoupling: bool,
     /// The design it was built from (SI), for reports.
     pub design: CurrentDesign,
@@ -99,9 +114,10 @@ impl CurrentConfig {
     /// Designs the two current controllers for `motor` sampled as in `base`.
     ///
     /// Errors: a motor parameter ([`ConfigError::Param`]); `bandwidth_rad_s` outside
-    /// `(0, 1/T_s]`, a `K_p` outside `(0, L/T_s]` or `K_i` outside `[0, K_p/T_s]`
-    /// ([`ConfigError::Gain`] naming `current.bandwidth_rad_s`, `current.kp_d`, ...);
-    /// `modulation` outside `(0, 1]`.
+    /// `(0, 1/T_s]`, a `K_p` outside `(0, L/T_s]` or `K_i` outside `[0, K_p/T_s]`, or a
+    /// gain outside the fixed-point ranges (`K_p/Z_b` in [2⁻⁹, 2¹⁴), `K_i T_s/Z_b` 0 or in
+    /// [2⁻²², 1)) ([`ConfigError::Gain`] naming `current.bandwidth_rad_s`, `current.kp_d`,
+    /// ..., in SI units); `modulation` outside `(0, 1]`.
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,
@@ -132,24 +148,36 @@ impl CurrentConfig {
         gain_in("current.kp_q", kp_q, 1e-12, motor.lq_h / ts)?;
         gain_in("current.ki_d", ki_d, 0.0, kp_d / ts)?;
         gain_in("current.ki_q", ki_q, 0.0, kp_q / ts)?;
-        let pi_d = PiConfig::new(
+        let pi_d = FastPiConfig::new(
             kp_d / z_b,
             ki_d * ts / z_b,
             ["current.kp_d", "current.ki_d"],
+            [z_b, z_b / ts],
         )?;
-        let pi_q = PiConfig::new(
+        let pi_q = FastPiConfig::new(
             kp_q / z_b,
             ki_q * ts / z_b,
             ["current.kp_q", "current.ki_q"],
+            [z_b, z_b / ts],
         )?;
         let l_b = base.inductance_h;
         Ok(Self {
             pi_d,
             pi_q,
-            ld: wide_gain("ld_h", motor.ld_h / l_b, 1e6)?,
-            lq: wide_gain("lq_h", motor.lq_h / l_b, 1e6)?,
+            ld: coef_in("ld_h", motor.ld_h / l_b, (0.0, f64::MAX), true, l_b)?,
+            // The negation of a representable non-negative value is representable.
+            neg_lq: Coef::new(
+                -coef_in::<24>("lq_h", motor.lq_h / l_b, (0.0, f64::MAX), true, l_b)?.to_f64(),
+            )
+            .unwrap_or(Coef::ZERO),
             psi: pu_from_f64(motor.flux_wb / base.flux_wb),
-            vmax_per_vdc: wide_gain("current.modulation", m / libm::sqrt(3.0), 1.0)?,
+            vmax_per_vdc: coef_in(
+                "current.modulation",
+                m / libm::sqrt(3.0),
+                (0.0, 1.0),
+                true,
+                1.0,
+            )?,
             decoupling: design.decoupling,
             design,
             gains_si: [kp_d, ki_d, kp_q, ki_q],
@@ -189,16 +217,16 @@ pub struct CurrentOutput {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentController {
     config: CurrentConfig,
-    pi_d: Pi,
-    pi_q: Pi,
+    pi_d: FastPi,
+    pi_q: FastPi,
 }
 
 impl CurrentController {
     /// Controllers with zero integral state.
     pub fn new(config: CurrentConfig) -> Self {
         Self {
-            pi_d: Pi::new(config.pi_d),
-            pi_q: Pi::new(config.pi_q),
+            pi_d: FastPi::new(config.pi_d),
+            pi_q: FastPi::new(config.pi_q),
             config,
         }
     }
@@ -219,11 +247,12 @@ impl CurrentController {
     pub fn step(&mut self, input: &CurrentInput) -> CurrentOutput {
         let c = &self.config;
         let vdc = input.vdc.max(Pu::ZERO);
-        let v_max = c.vmax_per_vdc.apply(vdc);
+        // m/√3 < 1 and vdc ≥ 0: the product cannot saturate.
+        let v_max = Pu::from_bits(frac_mul(c.vmax_per_vdc, vdc.to_bits()));
         let (ff_d, ff_q) = if c.decoupling {
             let w = input.omega;
             // −ω L_q i_q and ω (L_d i_d + ψ): speed voltages of seed 001 eq. 3–4.
-            let ff_d = c.lq.apply(mul(w, input.i.q)).saturating_neg();
+            let ff_d = c.neg_lq.apply(mul(w, input.i.q));
             let flux_d = c.ld.apply(input.i.d).saturating_add(c.psi);
             (ff_d, mul(w, flux_d))
         } else {
@@ -231,25 +260,21 @@ impl CurrentController {
         };
         let e_d = input.i_ref.d.saturating_sub(input.i.d);
         let e_q = input.i_ref.q.saturating_sub(input.i.q);
-        let d = self
-            .pi_d
-            .step(e_d, ff_d, Limits::symmetric(v_max), input.hold);
+        // v_max ≥ 0 (a non-negative coefficient of a non-negative bus).
+        let (d, _, integ_d) = self.pi_d.eval(e_d, ff_d, v_max, input.hold);
+        self.pi_d.commit(integ_d);
         // The q limit is the room left on the circle, √(V_max² − v_d²) (a square root). It
         // is at least V_max − |v_d| (as (V_max − |v_d|)² ≤ V_max² − v_d²), and when the q PI
         // stays strictly inside that bound its step is the same for the exact limit (see
-        // `Pi::step_inside`): the root is taken only when the q axis comes near the circle.
-        let saved = self.pi_q;
-        let lower = v_max.saturating_sub(d.u.saturating_abs()).max(Pu::ZERO);
-        let (mut q, inside) =
-            self.pi_q
-                .step_inside(e_q, ff_q, Limits::symmetric(lower), input.hold);
+        // `FastPi::step_inside`): the root is taken only when the q axis comes near the circle.
+        // |v_d| ≤ v_max: the difference is in [0, v_max], no saturation needed.
+        let lower = Pu::from_bits(v_max.to_bits() - d.u.to_bits().wrapping_abs());
+        let (mut q, inside, mut integ) = self.pi_q.eval(e_q, ff_q, lower, input.hold);
         if !inside {
-            self.pi_q = saved;
             let room = circle_room(v_max, d.u);
-            q = self
-                .pi_q
-                .step(e_q, ff_q, Limits::symmetric(room), input.hold);
+            (q, _, integ) = self.pi_q.eval(e_q, ff_q, room, input.hold);
         }
+        self.pi_q.commit(integ);
         CurrentOutput {
             v: Dq { d: d.u, q: q.u },
             v_max,

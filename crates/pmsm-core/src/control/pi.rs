@@ -34,7 +34,7 @@
 //! given at every step, so a caller can apply a time-varying or vector (circle) limit one axis
 //! at a time ([`super::current`]).
 //!
-//! # Formats
+//! # Formats of [`Pi`]
 //!
 //! | signal | format | range |
 //! |---|---|---|
@@ -45,10 +45,39 @@
 //! The proportional term is also formed in Q16.48, so the only rounding of `u` is the final
 //! one (½ LSB), and `I` resolves 2⁻²⁴ of an LSB: an increment `K_i T_s e` of 10⁻⁴ LSB is not
 //! lost.
+//!
+//! # Two implementations
+//!
+//! [`FastPi`] is the one the current loops run: compile-time binary points ([`Coef`]) and
+//! 32-bit logic, a few tens of instructions per step on a Cortex-M4. [`Pi`] is the general
+//! one (any gain from 2⁻⁴⁰ to 2²⁰, `K_p = 0` for conditional integration) still used by the
+//! current-model MRAS; it costs about ten times as much.
+//!
+//! # Formats of [`FastPi`]
+//!
+//! | signal | format | range |
+//! |---|---|---|
+//! | `e`, `ff`, `u`, `lo`, `hi`, `u_raw` | [`Pu`] Q8.24 | ±128 |
+//! | `K_p` | [`Coef<17>`](Coef) | [2⁻⁹, 2¹⁴), resolution 2⁻¹⁷ (≥ 8 significant bits) |
+//! | `K_i T_s` | [`Coef<32>`](Coef) | 0 or [2⁻²⁴, ½) |
+//! | `k_t` | [`Coef<30>`](Coef) | [0, 1] |
+//! | `I` | Q8.56 in `i64` (LSB = that of `K_i T_s · e` exact; high word = [`Pu`]) | clamped into `[lo − ff, hi − ff]` ⊂ ±128 |
+//!
+//! `u_raw = (ff + K_p e) + I` is formed in 32 bits with `QADD`s: `K_p e` is rounded once from
+//! the exact product (½ LSB) and `I` to the nearest LSB (½ LSB), so `u_raw` is within 1 LSB
+//! of the exact sum, and it saturates at ±128 (the limits are inside, so the clamp and the
+//! flags are unaffected).
+//! Increments `K_i T_s e` and `k_t (clamp(u_raw) − u_raw)` are exact products in the
+//! integrator's LSB (one `SMLAL` each on a Cortex-M4), so an increment of 10⁻⁵ LSB is not
+//! lost. The sum `I + increment` saturates its high word (cheaper than a 64-bit saturating
+//! add, and exact up to the clamp that follows), and the clamp compares high words only. The
+//! back-calculation's excess is bounded to ±32 per unit (far beyond any drive's voltage
+//! error) so that the increment itself cannot overflow. [`FastPi`] takes symmetric limits
+//! `±m`, all the current loops need.
 
 use super::{WIDE_LIMIT, WideGain, gain_in, pu_to_wide, wide_gain, wide_to_pu};
 use crate::error::ConfigError;
-use crate::num::Pu;
+use crate::num::{Coef, Pu};
 
 /// Largest accepted `K_p` (per unit of output per unit of error).
 pub const MAX_KP: f64 = 1_048_576.0;
@@ -226,6 +255,215 @@ impl Pi {
         };
         (out, inside)
     }
+}
+
+/// Fractional bits of [`FastPi`]'s `K_p`: up to 2¹⁴, the largest `L/(T_s Z_b)` of the
+/// per-unit envelope ([`crate::units`]), i.e. a deadbeat current loop on its fastest motor.
+pub const KP_FRAC: u32 = 17;
+/// Fractional bits of [`FastPi`]'s `K_i T_s` (below ½): the integrator's LSB is the exact
+/// product's, 2⁻⁵⁶, so the high word of the Q8.56 integrator is a [`Pu`].
+pub const KI_FRAC: u32 = 32;
+/// Fractional bits of [`FastPi`]'s `k_t` (at most 1).
+pub const KT_FRAC: u32 = 30;
+/// Smallest non-zero `K_p` of a [`FastPi`]: 2⁻⁹, eight significant bits at `KP_FRAC`.
+pub const FAST_KP_MIN: f64 = 1.0 / 512.0;
+/// Smallest non-zero `K_i T_s` of a [`FastPi`]: 2⁻²⁴, eight significant bits at `KI_FRAC`.
+pub const FAST_KI_TS_MIN: f64 = 1.0 / 16_777_216.0;
+/// Largest `K_i T_s` of a [`FastPi`] (exclusive): ½ (a current loop's default is
+/// `0.05 R/Z_b`, below 0.01 for the motors of the envelope's tests).
+pub const FAST_KI_TS_MAX: f64 = 0.5;
+
+/// Shift from a [`Pu`] value to the Q8.56 integrator (`KI_FRAC`).
+const I_SHIFT: u32 = KI_FRAC;
+/// Bound of the back-calculation's excess, ±2²⁹ LSB (±32 pu): `|K_i T_s e| < 2⁶²` and
+/// `|4 k_t excess| ≤ 2⁶¹`, so the increment cannot overflow.
+const EXCESS_BOUND: i32 = 1 << 29;
+
+/// Largest value a `Coef<F>` holds: `(2³¹ − 1) 2^−F`.
+pub(crate) fn coef_max<const F: u32>() -> f64 {
+    libm::ldexp(i32::MAX as f64, -(F as i32))
+}
+
+/// `value` (per unit) as a `Coef<F>`: zero (when `zero_ok`) or within `[min, max]`, `max`
+/// at most [`coef_max`]; the error reports `value · si_per_pu` and the range in the same (SI)
+/// unit.
+pub(crate) fn coef_in<const F: u32>(
+    key: &'static str,
+    value: f64,
+    (min, max): (f64, f64),
+    zero_ok: bool,
+    si_per_pu: f64,
+) -> Result<Coef<F>, ConfigError> {
+    let max = max.min(coef_max::<F>());
+    let ok = value.is_finite() && ((zero_ok && value == 0.0) || (min..=max).contains(&value));
+    match Coef::<F>::new(value) {
+        Some(c) if ok => Ok(c),
+        _ => Err(ConfigError::Gain {
+            key,
+            value: value * si_per_pu,
+            min: if zero_ok { 0.0 } else { min * si_per_pu },
+            max: max * si_per_pu,
+        }),
+    }
+}
+
+/// Gains of a [`FastPi`], per unit (back-calculation; `K_p > 0`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FastPiConfig {
+    kp: Coef<KP_FRAC>,
+    ki_ts: Coef<KI_FRAC>,
+    /// `min(K_i T_s/K_p, 1)` of the stored gains.
+    kt: Coef<KT_FRAC>,
+}
+
+impl FastPiConfig {
+    /// PI with proportional gain `kp` in `[2⁻⁹, 2¹⁴)` and integral gain per sample `ki_ts`
+    /// (0 or in `[2⁻²⁴, ½)`), per unit. Errors name `keys[0]` or `keys[1]` and give the value
+    /// and range times `si_per_pu` (the caller's unit).
+    pub fn new(
+        kp: f64,
+        ki_ts: f64,
+        keys: [&'static str; 2],
+        si_per_pu: [f64; 2],
+    ) -> Result<Self, ConfigError> {
+        let kp = coef_in::<KP_FRAC>(keys[0], kp, (FAST_KP_MIN, f64::MAX), false, si_per_pu[0])?;
+        let max_ki = FAST_KI_TS_MAX - libm::ldexp(1.0, -(KI_FRAC as i32));
+        let ki_ts =
+            coef_in::<KI_FRAC>(keys[1], ki_ts, (FAST_KI_TS_MIN, max_ki), true, si_per_pu[1])?;
+        // From the stored values, so that an f64 model with the same constants is exact (up
+        // to the 2⁻³¹ rounding of k_t). kp ≥ 2⁻⁹ > 0; k_t ≤ 1 = 2³⁰ LSB fits.
+        let kt = (ki_ts.to_f64() / kp.to_f64()).min(1.0);
+        let kt = Coef::new(kt).unwrap_or(Coef::ZERO);
+        Ok(Self { kp, ki_ts, kt })
+    }
+
+    /// `K_p` as stored.
+    pub fn kp(&self) -> f64 {
+        self.kp.to_f64()
+    }
+
+    /// `K_i T_s` as stored.
+    pub fn ki_ts(&self) -> f64 {
+        self.ki_ts.to_f64()
+    }
+
+    /// Back-calculation gain `k_t` as stored.
+    pub fn kt(&self) -> f64 {
+        self.kt.to_f64()
+    }
+}
+
+/// The PI of the current loops: the algorithm of this module's docs with back-calculation
+/// and symmetric limits `[−m, m]`, in the formats of its table. Integer only, never panics,
+/// never wraps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FastPi {
+    config: FastPiConfig,
+    /// Integral state, Q8.56 (high word: [`Pu`]); at the end of every step a multiple of
+    /// 2³² or within `(lo − ff, hi − ff)`.
+    integ: i64,
+}
+
+impl FastPi {
+    /// A controller with zero integral state.
+    pub fn new(config: FastPiConfig) -> Self {
+        Self { config, integ: 0 }
+    }
+
+    /// The gains.
+    pub fn config(&self) -> &FastPiConfig {
+        &self.config
+    }
+
+    /// Sets the integral state.
+    pub fn reset(&mut self, integral: Pu) {
+        self.integ = (integral.to_bits() as i64) << I_SHIFT;
+    }
+
+    /// The integral state, rounded to [`Pu`].
+    pub fn integral(&self) -> Pu {
+        Pu::from_bits(integ_to_pu(self.integ))
+    }
+
+    /// One step: error `e`, feed-forward `ff`, output limits `±max` (`|max|` is used), and
+    /// `hold` (a later stage saturated: do not integrate outward).
+    #[inline(always)]
+    pub fn step(&mut self, e: Pu, ff: Pu, max: Pu, hold: bool) -> PiOutput {
+        let (out, _, integ) = self.eval(e, ff, max.saturating_abs(), hold);
+        self.integ = integ;
+        out
+    }
+
+    /// The step without its state update, for limits `±m` with `m ≥ 0` (a negative `m` acts
+    /// as 0): the output, whether no limit took part (see [`Pi::step_inside`]: then the step
+    /// is bit for bit the same for any wider limits), and the new integral state (for
+    /// [`FastPi::commit`]). A caller with a costly exact limit evaluates with a cheap inner
+    /// bound first, and again with the exact limit only when the second value is false.
+    #[inline(always)]
+    pub fn eval(&self, e: Pu, ff: Pu, m: Pu, hold: bool) -> (PiOutput, bool, i64) {
+        let c = self.config;
+        let (eb, ffb) = (e.to_bits(), ff.to_bits());
+        let hi = m.to_bits().max(0);
+        let lo = -hi;
+        // ff + K_p e (one rounding of the exact product, saturated), then + I rounded: two
+        // roundings, within 1 LSB of the exact sum (f64 tests: drive_parts_loops).
+        let pf = c.kp.apply_bits(eb).saturating_add(ffb);
+        let raw = pf.saturating_add(integ_to_pu(self.integ));
+        // lo < raw < hi, with |raw| taken without overflow.
+        let raw_inside = raw.unsigned_abs() < hi as u32;
+        let (up, down) = (eb > 0, eb < 0);
+        // |K_i T_s e| < 2⁶² (K_i T_s < ½).
+        let mut inc = c.ki_ts.wide(eb);
+        if !raw_inside {
+            // Back-calculation k_t (clamp(u_raw) − u_raw), bounded to ±32 pu so that
+            // |4 k_t excess| ≤ 2⁶¹ (k_t ≤ 1) and the sum stays below 2⁶³; zero inside the
+            // limits (the common case), where the product is skipped.
+            let excess = raw.max(lo).min(hi).saturating_sub(raw);
+            let excess = excess.clamp(-EXCESS_BOUND, EXCESS_BOUND);
+            inc += c.kt.wide(excess) << (KI_FRAC - KT_FRAC);
+        }
+        if hold && ((raw > 0 && up) || (raw < 0 && down)) {
+            inc = 0;
+        }
+        // I + inc with the high word saturated (the clamp below brings it back), then the
+        // clamp to [lo − ff, hi − ff] on the high word: I < i_lo 2³² ⟺ high < i_lo, and
+        // I ≥ i_hi 2³² ⟺ high ≥ i_hi (clamped unless exactly on the bound).
+        let (low, carry) = (self.integ as u32).overflowing_add(inc as u32);
+        let high = ((self.integ >> 32) as i32)
+            .saturating_add((inc >> 32) as i32)
+            .saturating_add(carry as i32);
+        let i_lo = lo.saturating_sub(ffb);
+        let i_hi = hi.saturating_sub(ffb);
+        let (integ, clamped) = if high >= i_hi {
+            ((i_hi as i64) << 32, high != i_hi || low != 0)
+        } else if high < i_lo {
+            ((i_lo as i64) << 32, true)
+        } else {
+            (((high as i64) << 32) | low as i64, false)
+        };
+        let raw2 = pf.saturating_add(integ_to_pu(integ));
+        // On a limit with the error pushing into it counts as saturated: raw2 ≥ hi when
+        // e > 0, raw2 > hi otherwise (hi − 1 and lo + 1 cannot overflow as hi ≥ 0).
+        let out = PiOutput {
+            u: Pu::from_bits(raw2.max(lo).min(hi)),
+            saturated: clamped || raw2 > hi - up as i32 || raw2 < lo + down as i32,
+        };
+        let inside = !clamped && raw_inside && raw2.unsigned_abs() < hi as u32;
+        (out, inside, integ)
+    }
+
+    /// Stores a new integral state returned by [`FastPi::eval`].
+    #[inline(always)]
+    pub fn commit(&mut self, integ: i64) {
+        self.integ = integ;
+    }
+}
+
+/// A Q8.56 integral state rounded to [`Pu`] bits: the high word plus the rounding bit,
+/// saturated.
+#[inline(always)]
+fn integ_to_pu(integ: i64) -> i32 {
+    ((integ >> I_SHIFT) as i32).saturating_add(((integ as u32) >> (I_SHIFT - 1)) as i32)
 }
 
 #[cfg(test)]

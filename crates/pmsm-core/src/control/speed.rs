@@ -25,23 +25,58 @@
 //!
 //! # Anti-windup
 //!
-//! [`Pi`] with `K_p = 0` and `−K_pΩ ω̂` as feed-forward: conditional integration and an
+//! The PI of [`super::pi`] with `K_p = 0` and `ff = −K_pΩ ω̂`: conditional integration (no
+//! integration while the output is at a limit and the error drives it further) and an
 //! integrator clamped to `[−I_max + K_pΩ ω̂, I_max + K_pΩ ω̂]`. After a saturated acceleration
 //! the integrator leaves the clamp when `K_iΩ (ω* − ω̂) < K_pΩ dω̂/dt`, which is the state of
 //! the linear loop tracking a ramp; a ramp followed by a hold gives no overshoot either, so a
 //! saturated step does not overshoot (tests: `drive_parts_loops`).
 //!
+//! # State: the unclamped output, not the integral
+//!
+//! The integral `I` holds `i_q* + K_pΩ ω̂`, which is far larger than `I_max` when `K_pΩ` is
+//! large (108 pu of current at 1 pu of speed for motor A). The controller keeps instead
+//! `s = I − K_pΩ ω̂` (the output, `s ∈ [−I_max, I_max]` after each step) and the last
+//! `ff = −K_pΩ ω̂`; with `Δff` the change of `ff` since the previous sample, the step
+//!
+//! ```text
+//! u_raw = s + Δff
+//! stop  = (u_raw ≥ I_max and e > 0) or (u_raw ≤ −I_max and e < 0)
+//! s     = clamp(u_raw + (stop ? 0 : K_iΩ T e), −I_max, I_max)
+//! ```
+//!
+//! is the PI above exactly (the clamp of `I` to `[lo − ff, hi − ff]` is the clamp of `s` to
+//! `[lo, hi]`): one product per step (`K_pΩ ω̂`) besides the integral's, and 32-bit
+//! comparisons on the high word of `s`.
+//!
 //! # Formats
 //!
-//! `ω*`, `ω̂` per unit of `ω_b`, `i_q*` per unit of `I_b`: [`Pu`]. Gains: [`WideGain`] per unit
-//! (`K_pΩ ω_b/I_b`, `K_iΩ T ω_b/I_b` with `T` the speed loop's period).
+//! | signal | format | range |
+//! |---|---|---|
+//! | `ω*`, `ω̂` (of `ω_b`), `i_q*`, `I_max` (of `I_b`), `ff`, `Δff` | [`Pu`] Q8.24 | ±128 (saturated); `I_max` ≤ 64 |
+//! | `−K_pΩ ω_b/I_b` | [`Coef<17>`](Coef) | (−2¹⁴, 0], resolution 2⁻¹⁷ |
+//! | `K_iΩ T ω_b/I_b` (`T` the speed loop's period) | [`Coef<31>`](Coef) | 0 or [2⁻²³, 1) |
+//! | `s` | Q8.56 in `i64` (high word: [`Pu`]; LSB that of `2 K_iΩ T e` exact) | `[−I_max, I_max]` |
+//!
+//! `u_raw` saturates its high word: with `|s| ≤ I_max ≤ 64` a saturated sum lies beyond the
+//! limit on the same side, so the decisions and the clamp are those of the exact sum. The
+//! output is `s` rounded (½ LSB).
 
-use super::pi::{Limits, Pi, PiConfig};
-use super::{WideGain, gain_in, wide_gain};
+use super::gain_in;
+use super::pi::{KP_FRAC, coef_in};
 use crate::error::ConfigError;
-use crate::num::{Pu, pu_from_f64};
+use crate::num::{Coef, Pu, pu_from_f64};
 use crate::params::{MotorParams, in_range};
 use crate::units::PerUnit;
+
+/// Fractional bits of `K_iΩ T` (per unit, below 1); its exact product times 2 is in the
+/// state's LSB (2⁻⁵⁶).
+const KI_FRAC: u32 = 31;
+/// Smallest non-zero `K_iΩ T ω_b/I_b`: 2⁻²³, eight significant bits.
+const KI_MIN: f64 = 1.0 / 8_388_608.0;
+/// Largest `K_iΩ T ω_b/I_b`: below 1 (1 was accepted before: an integrator that alone
+/// corrects a unit error in one sample, which no speed loop needs).
+const KI_MAX: f64 = 1.0 - 1.0 / 2_147_483_648.0;
 
 /// Default `ω_n T_s` of the speed loop (a tenth of the current loop's default).
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.005;
@@ -78,9 +113,10 @@ impl SpeedDesign {
 /// Configuration of the [`SpeedController`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpeedConfig {
-    pi: PiConfig,
-    /// `K_pΩ` per unit.
-    kp: WideGain,
+    /// `K_iΩ T` per unit.
+    ki_t: Coef<KI_FRAC>,
+    /// `−K_pΩ` per unit (negated: `ff = −K_pΩ ω̂` without a negation per sample).
+    neg_kp: Coef<KP_FRAC>,
     /// `I_max` per unit.
     i_max: Pu,
     /// Gains used, SI: `(K_iΩ, K_pΩ)`.
@@ -94,7 +130,8 @@ impl SpeedConfig {
     ///
     /// Errors ([`ConfigError::Gain`]): `speed.bandwidth_rad_s` outside `(0, 0.2/T]`,
     /// `speed.damping` outside `[0.3, 10]`, `speed.ki` or `speed.kp` negative or beyond the
-    /// per-unit range; [`ConfigError::Param`] for `speed.current_limit_a` (in `(0, 64 I_b]`)
+    /// per-unit range (`K_iΩ T ω_b/I_b` 0 or in [2⁻²³, 1), `K_pΩ ω_b/I_b` < 2¹⁴; in SI units
+    /// in the error); [`ConfigError::Param`] for `speed.current_limit_a` (in `(0, 64 I_b]`)
     /// or `speed.decimation` (in 1..=1000).
     pub fn new(
         motor: &MotorParams,
@@ -127,17 +164,41 @@ impl SpeedConfig {
         };
         let (wb, ib) = (base.omega_e_rad_s, base.current_a);
         // Per-unit: i_q/I_b = K (ω/ω_b) ω_b/I_b.
-        let max_ki = super::pi::MAX_KI_TS * ib / (t * wb);
-        let max_kp = super::pi::MAX_KP * ib / wb;
-        gain_in("speed.ki", ki, 0.0, max_ki)?;
-        gain_in("speed.kp", kp, 0.0, max_kp)?;
         Ok(Self {
-            pi: PiConfig::new(0.0, ki * t * wb / ib, ["speed.kp", "speed.ki"])?,
-            kp: wide_gain("speed.kp", kp * wb / ib, max_kp)?,
+            ki_t: coef_in(
+                "speed.ki",
+                ki * t * wb / ib,
+                (KI_MIN, KI_MAX),
+                true,
+                ib / (t * wb),
+            )?,
+            // The negation of a representable non-negative value is representable.
+            neg_kp: Coef::new(
+                -coef_in::<KP_FRAC>("speed.kp", kp * wb / ib, (0.0, f64::MAX), true, ib / wb)?
+                    .to_f64(),
+            )
+            .unwrap_or(Coef::ZERO),
             i_max: pu_from_f64(i_max_a / ib),
             gains_si: (ki, kp),
             design,
         })
+    }
+}
+
+impl SpeedConfig {
+    /// `K_pΩ ω_b/I_b` as stored (per unit; for f64 models of the fixed-point loop).
+    pub fn kp_pu(&self) -> f64 {
+        -self.neg_kp.to_f64()
+    }
+
+    /// `K_iΩ T ω_b/I_b` as stored (per unit).
+    pub fn ki_t_pu(&self) -> f64 {
+        self.ki_t.to_f64()
+    }
+
+    /// `I_max` per unit.
+    pub fn i_max(&self) -> Pu {
+        self.i_max
     }
 }
 
@@ -154,15 +215,22 @@ pub struct SpeedOutput {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpeedController {
     config: SpeedConfig,
-    pi: Pi,
+    /// Output of the last step, Q8.56 (high word: [`Pu`]; see the module docs).
+    s: i64,
+    /// `ff = −K_pΩ ω̂` of the last step.
+    ff: Pu,
 }
+
+/// Shift from [`Pu`] to the Q8.56 state.
+const S_SHIFT: u32 = 32;
 
 impl SpeedController {
     /// Controller with zero integral state.
     pub fn new(config: SpeedConfig) -> Self {
         Self {
-            pi: Pi::new(config.pi),
             config,
+            s: 0,
+            ff: Pu::ZERO,
         }
     }
 
@@ -172,21 +240,56 @@ impl SpeedController {
     }
 
     /// Bumpless restart at speed `omega` with current `iq` flowing: sets the integrator to
-    /// `iq + K_pΩ ω`.
+    /// `iq + K_pΩ ω` (`iq` clamped to `±I_max`).
     pub fn reset(&mut self, omega: Pu, iq: Pu) {
-        let i = iq.saturating_add(self.config.kp.apply(omega));
-        self.pi.reset(i);
+        let c = &self.config;
+        self.ff = c.neg_kp.apply(omega);
+        self.s = (iq.max(-c.i_max).min(c.i_max).to_bits() as i64) << S_SHIFT;
     }
 
-    /// One speed-loop sample (every `decimation` control samples). Integer only.
+    /// One speed-loop sample (every `decimation` control samples). Integer only; never
+    /// panics.
     pub fn step(&mut self, omega_ref: Pu, omega: Pu) -> SpeedOutput {
         let c = &self.config;
-        let e = omega_ref.saturating_sub(omega);
-        let ff = c.kp.apply(omega).saturating_neg();
-        let o = self.pi.step(e, ff, Limits::symmetric(c.i_max), false);
+        let e = omega_ref.saturating_sub(omega).to_bits();
+        let ff = c.neg_kp.apply(omega);
+        let dff = ff.to_bits().saturating_sub(self.ff.to_bits());
+        self.ff = ff;
+        // u_raw = s + Δff: the high word (a Pu) saturated, the fraction unchanged. With
+        // |s| ≤ I_max ≤ 64 pu a saturated sum is beyond the limits on the same side, so the
+        // decisions and the clamp are the same as with the exact sum.
+        let (high, low) = ((self.s >> S_SHIFT) as i32, self.s as u32);
+        let high = high.saturating_add(dff);
+        let (hi, lo) = (c.i_max.to_bits(), -c.i_max.to_bits());
+        let (up, down) = (e > 0, e < 0);
+        // u_raw ≥ I_max ⟺ high ≥ hi; u_raw ≤ −I_max ⟺ high < lo, or high = lo and no fraction.
+        let stop = (high >= hi && up) || ((high < lo || (high == lo && low == 0)) && down);
+        // K_iΩ T e, exact, in the state's LSB 2⁻⁵⁶: |·| < 2⁶³.
+        let inc = if stop {
+            0
+        } else {
+            c.ki_t.wide(e) << (S_SHIFT - KI_FRAC)
+        };
+        // u_raw + inc with the high word saturated, then the clamp on the high word.
+        let (low, carry) = low.overflowing_add(inc as u32);
+        let high = high
+            .saturating_add((inc >> 32) as i32)
+            .saturating_add(carry as i32);
+        let (s, clamped) = if high >= hi {
+            ((hi as i64) << S_SHIFT, high != hi || low != 0)
+        } else if high < lo {
+            ((lo as i64) << S_SHIFT, true)
+        } else {
+            (((high as i64) << S_SHIFT) | low as i64, false)
+        };
+        self.s = s;
+        // s ∈ [−I_max, I_max]: the high word plus the rounding bit stays inside.
+        let iq = (s >> S_SHIFT) as i32 + ((s as u32) >> (S_SHIFT - 1)) as i32;
         SpeedOutput {
-            iq_ref: o.u,
-            saturated: o.saturated,
+            iq_ref: Pu::from_bits(iq),
+            saturated: clamped
+                || (s == (hi as i64) << S_SHIFT && up)
+                || (s == (lo as i64) << S_SHIFT && down),
         }
     }
 }
