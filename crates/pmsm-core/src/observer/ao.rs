@@ -71,6 +71,15 @@ pub struct Ao {
     direction: Direction,
     emf: AlphaBeta,
     last: Estimate,
+    /// `|Δα| + |Δβ|` of the last innovation (measured EMF minus the estimate).
+    innovation: Pu,
+}
+
+impl AoConfig {
+    /// `ψ`, per unit of the flux base.
+    pub(crate) fn psi(&self) -> Pu {
+        self.psi_pu
+    }
 }
 
 impl Ao {
@@ -82,6 +91,7 @@ impl Ao {
             config,
             emf: AlphaBeta::default(),
             last: Estimate::default(),
+            innovation: Pu::ZERO,
         }
     }
 
@@ -97,6 +107,17 @@ pub(crate) fn approach(x: AlphaBeta, target: AlphaBeta, kappa: Gain) -> AlphaBet
 }
 
 /// `x + κ (measured − predicted)`, per component: a correction by an innovation.
+/// `|m_α − p_α| + |m_β − p_β|`: the size of an EMF innovation, per unit of `V_b` (the L1
+/// norm: no product, between 1 and √2 times the Euclidean length).
+#[inline]
+pub(crate) fn innovation_l1(measured: AlphaBeta, predicted: AlphaBeta) -> Pu {
+    measured
+        .alpha
+        .saturating_sub(predicted.alpha)
+        .saturating_abs()
+        .saturating_add(measured.beta.saturating_sub(predicted.beta).saturating_abs())
+}
+
 pub(crate) fn approach_delta(
     x: AlphaBeta,
     measured: AlphaBeta,
@@ -127,6 +148,7 @@ pub(crate) fn emf_of(theta: Angle, omega: Pu, psi_pu: Pu) -> AlphaBeta {
 impl Estimator for Ao {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
         if let Some(measured) = self.meter.update(input.i, input.v) {
+            self.innovation = innovation_l1(measured, self.emf);
             self.emf = approach(self.emf, measured, self.config.kappa);
         }
         let p = polar(self.emf.alpha, self.emf.beta);
@@ -155,6 +177,7 @@ impl Estimator for Ao {
     fn reset(&mut self, theta: Angle, omega: Pu) {
         self.emf = emf_of(theta, omega, self.config.psi_pu);
         self.meter.restart();
+        self.innovation = Pu::ZERO;
         self.direction.reset(omega >= Pu::ZERO);
         self.last = Estimate {
             theta,

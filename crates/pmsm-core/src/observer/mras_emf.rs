@@ -117,6 +117,8 @@ pub struct MrasEmf {
     model: AlphaBeta,
     integral: Pu,
     last: Estimate,
+    /// `| |ẽ| − ψ |ω̂| |`: the adjustable model's EMF against the adapted speed.
+    consistency: Pu,
 }
 
 impl MrasEmf {
@@ -128,6 +130,7 @@ impl MrasEmf {
             model: AlphaBeta::default(),
             integral: Pu::ZERO,
             last: Estimate::default(),
+            consistency: Pu::ZERO,
         }
     }
 
@@ -173,6 +176,10 @@ impl Estimator for MrasEmf {
                 .unwrap_or(0),
         ));
         let p = polar(self.model.alpha, self.model.beta);
+        self.consistency = p
+            .magnitude
+            .saturating_sub(mul(c.ao.psi(), omega.saturating_abs()))
+            .saturating_abs();
         self.last = Estimate {
             theta: rotor_angle_from_emf(p.angle, omega >= Pu::ZERO),
             omega,
@@ -197,6 +204,7 @@ impl Estimator for MrasEmf {
             0.0
         };
         self.integral = pu_from_f64(integral);
+        self.consistency = Pu::ZERO;
         self.last = Estimate {
             theta,
             omega,

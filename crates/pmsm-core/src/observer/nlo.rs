@@ -28,7 +28,7 @@
 //!
 //! Signals: `ê` Q8.24 per unit of `V_b`; `Δ` an [`Angle`]; `sinc` Q2.30; gains [`Gain`].
 
-use super::ao::{approach_delta, emf_of};
+use super::ao::{approach_delta, emf_of, innovation_l1};
 use super::{
     Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, observer_pole,
     rotor_angle_from_emf,
@@ -104,6 +104,8 @@ pub struct Nlo {
     /// Direction of `ê` used for the mechanical term (kept when `|ê|` is tiny).
     emf_dir: SinCos,
     last: Estimate,
+    /// `|Δα| + |Δβ|` of the last innovation (measured minus predicted interval-mean EMF).
+    innovation: Pu,
 }
 
 impl Nlo {
@@ -116,6 +118,7 @@ impl Nlo {
             emf: AlphaBeta::default(),
             emf_dir: Angle::ZERO.sin_cos(),
             last: Estimate::default(),
+            innovation: Pu::ZERO,
         }
     }
 
@@ -170,6 +173,7 @@ impl Estimator for Nlo {
                 alpha: mul_unit(half_turned.alpha, s),
                 beta: mul_unit(half_turned.beta, s),
             };
+            self.innovation = innovation_l1(measured, predicted);
             emf = approach_delta(emf, measured, predicted, c.kappa);
         }
         self.emf = emf;
@@ -210,6 +214,7 @@ impl Estimator for Nlo {
         })
         .sin_cos();
         self.meter.restart();
+        self.innovation = Pu::ZERO;
         self.direction.reset(forward);
         self.last = Estimate {
             theta,
