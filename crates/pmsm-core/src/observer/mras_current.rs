@@ -78,7 +78,14 @@
 //! `ω² L_q²/(R² + ω² L_q²)` and the loop slows (the slowest mode tends to `ω² L_q/R` as the
 //! gains grow), which is the MRAS's known weakness near standstill; the position error at
 //! steady state is still zero with exact parameters. Accepted range:
-//! `K_p ∈ [0, 1/(k_∞ T_s)]`, `K_i ∈ [0, 0.25/(k_∞ T_s²)]`.
+//! `K_p ∈ [0, 1/(k_∞ T_s)]`, `K_i ∈ [0, 0.25/(k_∞ T_s²)]`, and within the formats of their
+//! per-unit values ("Formats").
+//!
+//! The PI is the estimator's own: `ω̂ = clamp(K_p ξ + I, ±ω_max)`, the feed-forward of the
+//! mechanical model and `K_i T_s ξ` added to `I` every sample, `I` clamped to `±ω_max`. While
+//! `K_p ξ + I` (before the integration) is on or beyond a limit, the integrator is
+//! back-calculated, `I ← I + K_i T_s ξ + k_t (clamp − (K_p ξ + I))`, `k_t = min(1, K_i T_s/K_p)`
+//! (with `K_p = 0`: no integration that pushes further out).
 //!
 //! # Through zero speed
 //!
@@ -125,10 +132,9 @@
 use super::{Estimate, Estimator, ObserverInput};
 use crate::angle::{Angle, SinCos};
 use crate::error::ConfigError;
-use crate::frames::{AlphaBeta, Dq, park};
+use crate::frames::{AlphaBeta, Dq};
 use crate::num::{
-    Coef, PU_FRAC, Pu, UNIT_FRAC, Unit, dot_unit, mac2, mul, mul_unit, pu_from_f64,
-    round_shift_sat, wmul, wmul_inline,
+    Coef, PU_FRAC, Pu, UNIT_FRAC, Unit, mul, pu_from_f64, round_shift_sat, wmul_inline,
 };
 use crate::params::MotorParams;
 use crate::units::PerUnit;
@@ -498,6 +504,7 @@ impl MrasCurrent {
         Angle((self.theta.wrapping_add(1 << 31) >> 32) as u32 as i32)
     }
 
+    #[inline(always)]
     fn make_estimate(&self, omega: Pu) -> Estimate {
         // ψ is 1 pu with the bases of `PerUnit` (ψ_b = ψ): no product then.
         let m = if self.config.psi.to_bits() == 1 << PU_FRAC {
@@ -508,22 +515,85 @@ impl MrasCurrent {
         Estimate {
             theta: self.angle(),
             omega,
+            // −ψ ω̂ sin θ̂ as ψ ω̂ (−sin θ̂).
             emf: AlphaBeta {
-                alpha: mul_unit(m, self.sc.sin).saturating_neg(),
-                beta: mul_unit(m, self.sc.cos),
+                alpha: Pu::from_bits(mul30(m.to_bits(), neg(self.sc.sin))),
+                beta: Pu::from_bits(mul30(m.to_bits(), self.sc.cos.to_bits())),
             },
         }
     }
 }
 
-/// `a x + b y + offset` with one rounding (the offset in the accumulator's LSB, 2⁻⁵²).
+// The products of one update, all inlined (also on ARMv6-M, where `wmul_inline` is the
+// 16-bit-halves product: measured, calls to out-of-line kernels cost more than they save in
+// register spills).
+
+/// `x y`, exact.
 #[inline(always)]
-fn mac2_off(a: Coef<MODEL_FRAC>, x: Pu, b: Coef<MODEL_FRAC>, y: Pu, offset: i64) -> Pu {
-    // |a|, |b| ≤ 2^30 in bits and |offset| ≤ 2^57: the sum is below 2^62.
-    Pu::from_bits(round_shift_sat(
-        a.wide(x.to_bits()) + b.wide(y.to_bits()) + offset,
-        MODEL_FRAC,
+fn wide(x: i32, y: i32) -> i64 {
+    wmul_inline(x, y)
+}
+
+/// `c x` rounded to nearest and saturated (a [`Coef`] times a [`Pu`] signal, in bits).
+#[inline(always)]
+fn apply<const F: u32>(c: i32, x: i32) -> i32 {
+    round_shift_sat(wmul_inline(x, c), F)
+}
+
+/// `a x + b y + offset`, one rounding (`offset` in the accumulator's LSB, `2^−(24+F)`).
+#[inline(always)]
+fn mac<const F: u32>(a: i32, x: i32, b: i32, y: i32, offset: i64) -> i32 {
+    // |a|, |b| ≤ 2^30 and |offset| ≤ 2^57 (module docs): the sum is below 2^62.
+    round_shift_sat(wmul_inline(x, a) + wmul_inline(y, b) + offset, F)
+}
+
+/// `a u + b v` rounded by 2³⁰: a signal (or sin/cos) times sin/cos, whose magnitude is at
+/// most 2³⁰ + 2²² in bits, so each product is below 2⁶¹.
+#[inline(always)]
+fn dot30(a: i32, u: i32, b: i32, v: i32) -> i32 {
+    round_shift_sat(wmul_inline(a, u) + wmul_inline(b, v), UNIT_FRAC)
+}
+
+/// `a u` rounded by 2³⁰ (a signal times sin or cos).
+#[inline(always)]
+fn mul30(a: i32, u: i32) -> i32 {
+    round_shift_sat(wmul_inline(a, u), UNIT_FRAC)
+}
+
+/// `−u` for a sin or cos (magnitude at most 2³⁰ + 2²² in bits: cannot wrap).
+#[inline(always)]
+fn neg(u: Unit) -> i32 {
+    u.to_bits().wrapping_neg()
+}
+
+/// `c x` for a [`Coef`] and a [`Pu`] signal.
+#[inline(always)]
+fn coef_mul<const F: u32>(c: Coef<F>, x: Pu) -> Pu {
+    Pu::from_bits(apply::<F>(c.bits(), x.to_bits()))
+}
+
+/// `a x + b y + offset` for two model weights.
+#[inline(always)]
+fn model_mac(a: Coef<MODEL_FRAC>, x: Pu, b: Coef<MODEL_FRAC>, y: Pu, offset: i64) -> Pu {
+    Pu::from_bits(mac::<MODEL_FRAC>(
+        a.bits(),
+        x.to_bits(),
+        b.bits(),
+        y.to_bits(),
+        offset,
     ))
+}
+
+/// Park's rotation to the frame of `sc`, as [`crate::frames::park`] (the same products and
+/// rounding, so the same bits).
+#[inline(always)]
+fn park_in(v: AlphaBeta, sc: SinCos) -> Dq {
+    let (a, b) = (v.alpha.to_bits(), v.beta.to_bits());
+    let (s, c) = (sc.sin.to_bits(), sc.cos.to_bits());
+    Dq {
+        d: Pu::from_bits(dot30(a, c, b, s)),
+        q: Pu::from_bits(dot30(b, c, a, neg(sc.sin))),
+    }
 }
 
 /// sin/cos of the frame advance `Δ = θ̂_k − θ̂_{k−1}` from the sin/cos of the two frames
@@ -538,13 +608,10 @@ fn advance(prev: SinCos, now: SinCos) -> SinCos {
             cos: Unit::from_bits(1 << UNIT_FRAC),
         };
     }
-    let dot = |a: Unit, b: Unit, c: Unit, d: Unit| {
-        let acc = wmul_inline(a.to_bits(), b.to_bits()) + wmul_inline(c.to_bits(), d.to_bits());
-        Unit::from_bits(round_shift_sat(acc, UNIT_FRAC))
-    };
+    let (s, c) = (now.sin.to_bits(), now.cos.to_bits());
     SinCos {
-        sin: dot(now.sin, prev.cos, now.cos.saturating_neg(), prev.sin),
-        cos: dot(now.cos, prev.cos, now.sin, prev.sin),
+        sin: Unit::from_bits(dot30(s, prev.cos.to_bits(), c, neg(prev.sin))),
+        cos: Unit::from_bits(dot30(c, prev.cos.to_bits(), s, prev.sin.to_bits())),
     }
 }
 
@@ -557,7 +624,7 @@ fn advance(prev: SinCos, now: SinCos) -> SinCos {
 fn integrate_saturated(c: &MrasCurrentConfig, raw: i64, integ: i64, xi: Pu) -> i64 {
     let hi = c.omega_max_wide;
     // |integ| < 2^59 and |K_i T_s ξ̃| < 2^62 (see `update`): the sum fits.
-    let with_i = integ + c.ki_ts.wide(xi.to_bits());
+    let with_i = integ + wide(xi.to_bits(), c.ki_ts.bits());
     if c.kt.bits() == 0 {
         let pushes = (raw >= hi && xi > Pu::ZERO) || (raw <= -hi && xi < Pu::ZERO);
         if pushes { integ } else { with_i }
@@ -575,12 +642,12 @@ impl Estimator for MrasCurrent {
         let omega = self.last.omega;
         // Frame advance over [t_{k−1}, t_k) with the speed held over it (eq. 23): an exact
         // product, shifted; the angle wraps by design.
-        let step = (wmul(omega.to_bits(), c.turn_per_speed) as u64) << TURN_SHIFT;
+        let step = (wide(omega.to_bits(), c.turn_per_speed) as u64) << TURN_SHIFT;
         self.theta = self.theta.wrapping_add(step);
         let sc_prev = self.sc;
         let sc = self.angle().sin_cos();
         self.sc = sc;
-        let i = park(input.i, sc);
+        let i = park_in(input.i, sc);
         self.i_dq = i;
         if self.seed {
             // After a reset the model starts from the measured current: no error to adapt on.
@@ -593,16 +660,17 @@ impl Estimator for MrasCurrent {
         // Model, eq. 15: the Strang step (half R–L step, exact rotation, half R–L step)
         // composed into one affine map (module docs, "Discretisation"): the weights act in
         // the frame at θ̂_{k−1}, the rotation by Δ takes them to the frame at θ̂_k.
-        let v = park(input.v, sc_prev);
+        let v = park_in(input.v, sc_prev);
         let ih = self.i_hat;
-        let xd = mac2_off(c.xd_i, ih.d, c.xd_v, v.d, c.off_d_acc);
-        let xq = mac2(c.xq_i, ih.q, c.xq_v, v.q);
-        let yq = mac2(c.yq_i, ih.q, c.yq_v, v.q);
-        let yd = mac2_off(c.yd_i, ih.d, c.yd_v, v.d, c.off_q_acc);
+        let xd = model_mac(c.xd_i, ih.d, c.xd_v, v.d, c.off_d_acc);
+        let xq = model_mac(c.xq_i, ih.q, c.xq_v, v.q, 0);
+        let yq = model_mac(c.yq_i, ih.q, c.yq_v, v.q, 0);
+        let yd = model_mac(c.yd_i, ih.d, c.yd_v, v.d, c.off_q_acc);
         let r = advance(sc_prev, sc);
+        let (rc, rs) = (r.cos.to_bits(), r.sin.to_bits());
         let i_hat = Dq {
-            d: dot_unit(xd, r.cos, xq, r.sin).saturating_sub(c.off_d),
-            q: dot_unit(yq, r.cos, yd, r.sin.saturating_neg()),
+            d: Pu::from_bits(dot30(xd.to_bits(), rc, xq.to_bits(), rs)).saturating_sub(c.off_d),
+            q: Pu::from_bits(dot30(yq.to_bits(), rc, yd.to_bits(), neg(r.sin))),
         };
         self.i_hat = i_hat;
         // ε = i − î (eq. 16); ξ̃ = (L_q/L_d) ξ = ρ² i_q ε_d − (i_d + ψ/L_d) ε_q (eq. 21–22
@@ -610,36 +678,36 @@ impl Estimator for MrasCurrent {
         // difference meets the rounding's contract (the dropped bit is 2^-25 LSB).
         let e_d = i.d.saturating_sub(i_hat.d);
         let e_q = i.q.saturating_sub(i_hat.q);
-        let w_d = c.rho2.apply(i.q);
+        let w_d = coef_mul(c.rho2, i.q);
         let w_q = i.d.saturating_add(c.psi_ld);
         let acc =
-            (wmul(w_d.to_bits(), e_d.to_bits()) >> 1) - (wmul(w_q.to_bits(), e_q.to_bits()) >> 1);
+            (wide(w_d.to_bits(), e_d.to_bits()) >> 1) - (wide(w_q.to_bits(), e_q.to_bits()) >> 1);
         let xi = Pu::from_bits(round_shift_sat(acc, PU_FRAC - 1));
         self.xi = xi;
         // Mechanical model: the torque current less the load estimate accelerates the rotor;
         // the load estimate moves against ξ (module docs, "Through zero speed").
-        let i_load = self.i_load.saturating_sub(c.load_gain.apply(xi));
+        let i_load = self.i_load.saturating_sub(coef_mul(c.load_gain, xi));
         self.i_load = i_load;
         let torque = i.q.saturating_sub(i_load);
         // Speed, eq. 22, in Q9.55 with exact increments: |I| ≤ 2^57 (clamped to ±4 pu),
         // |T_s a τ| < 2^58 and |T_s B/J ω̂| < 2^53 (both weights ≤ 2^27 in bits, |ω̂| ≤ 2^26),
         // |K_i T_s ξ̃| < 2^62, |K_p ξ̃| < 2^62 in Q9.55: no sum below can wrap.
-        let integ = self.integ + c.accel.wide(torque.to_bits()) - c.friction.wide(omega.to_bits());
-        let p = c.kp.apply(xi);
+        let integ = self.integ + wide(torque.to_bits(), c.accel.bits())
+            - wide(omega.to_bits(), c.friction.bits());
+        let p = coef_mul(c.kp, xi);
         let raw = ((p.to_bits() as i64) << INTEG_EXTRA) + integ;
         let hi = c.omega_max_wide;
         let integ = if -hi < raw && raw < hi {
             // Inside the limits: no anti-windup term.
-            integ + c.ki_ts.wide(xi.to_bits())
+            integ + wide(xi.to_bits(), c.ki_ts.bits())
         } else {
             integrate_saturated(c, raw, integ, xi)
         };
         let integ = integ.max(-hi).min(hi);
         self.integ = integ;
-        let omega = p
-            .saturating_add(Pu::from_bits(round_shift_sat(integ, INTEG_EXTRA)))
-            .max(-c.omega_max)
-            .min(c.omega_max);
+        // Rounded to Q8.24: |I| ≤ ω_max ≤ 4 pu, so the shifted value fits without a test.
+        let i_pu = Pu::from_bits(((integ + (1 << (INTEG_EXTRA - 1))) >> INTEG_EXTRA) as i32);
+        let omega = p.saturating_add(i_pu).max(-c.omega_max).min(c.omega_max);
         self.last = self.make_estimate(omega);
         self.last
     }
@@ -701,6 +769,77 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    fn inverter(vdc_v: f64, full_scale_a: f64) -> InverterParams {
+        InverterParams {
+            vdc_v,
+            pwm_hz: 20e3,
+            dead_time_s: 0.5e-6,
+            current_full_scale_a: full_scale_a,
+        }
+    }
+
+    /// The corners of the motor family of `units` (a drone and an industrial motor, 8–20 kHz)
+    /// fit every format with the default gains; a motor whose `ψ/L_d` exceeds the offsets'
+    /// range (32 pu) is a named error, not a wrapped coefficient.
+    #[test]
+    fn family_corners_fit_and_too_small_an_inductance_is_named() {
+        let mut drone = MotorParams::new(7, 0.02, 0.5e-3, 0.5e-3, 0.002, 2e-5, 1e-6);
+        drone.rated_current_a = Some(60.0);
+        let mut industrial = MotorParams::new(2, 4.0, 0.040, 0.048, 1.2, 0.01, 0.001);
+        industrial.rated_current_a = Some(3.0);
+        for hz in [8e3, 10e3, 20e3] {
+            for (m, inv) in [
+                (drone, inverter(24.0, 150.0)),
+                (industrial, inverter(540.0, 10.0)),
+            ] {
+                let b = PerUnit::new(&m, &inv, hz).unwrap();
+                let g = MrasCurrentGains::default_for(&m, &b);
+                assert!(MrasCurrentConfig::new(&m, &b, g).is_ok(), "{m:?} {hz}");
+            }
+        }
+        let (mut m, _) = motor_b();
+        m.ld_h = 2.5e-3;
+        m.lq_h = 4e-3;
+        let inv = InverterParams {
+            vdc_v: 540.0,
+            pwm_hz: 40e3,
+            dead_time_s: 2e-6,
+            current_full_scale_a: 10.0,
+        };
+        let b = PerUnit::new(&m, &inv, 40e3).unwrap();
+        let g = MrasCurrentGains::default_for(&m, &b);
+        assert!(matches!(
+            MrasCurrentConfig::new(&m, &b, g),
+            Err(ConfigError::Gain { key: "ld_h", .. })
+        ));
+    }
+
+    /// Without a proportional gain the integrator stops at the limit (conditional
+    /// integration) instead of back-calculating; wild inputs still saturate, never panic.
+    #[test]
+    fn conditional_integration_without_kp() {
+        let (m, b) = motor_b();
+        let mut g = MrasCurrentGains::default_for(&m, &b);
+        g.kp = 0.0;
+        let cfg = MrasCurrentConfig::new(&m, &b, g).unwrap();
+        let mut e = MrasCurrent::new(cfg);
+        e.reset(Angle::ZERO, cfg.omega_max);
+        let wild = ObserverInput {
+            i: AlphaBeta {
+                alpha: Pu::MIN,
+                beta: Pu::MAX,
+            },
+            v: AlphaBeta {
+                alpha: Pu::MAX,
+                beta: Pu::MAX,
+            },
+        };
+        for _ in 0..100 {
+            let out = e.update(&wild);
+            assert!(out.omega.abs() <= cfg.omega_max);
+        }
     }
 
     #[test]
