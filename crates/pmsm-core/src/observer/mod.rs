@@ -162,14 +162,31 @@ impl AnyEstimator {
     }
 }
 
+/// The rotor frame an estimator already rotated the current into, for the drive to reuse.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frame {
+    /// `sin_cos(θ̂)` of the last estimate, bit for bit.
+    pub sc: crate::angle::SinCos,
+    /// The measured current of the last update in that frame, bit for bit what `park` of the
+    /// same current gives.
+    pub i_dq: crate::frames::Dq,
+    /// sin/cos of the next update's angle, `θ̂ + ω̂ T_s`.
+    pub sc_next: crate::angle::SinCos,
+}
+
 impl AnyEstimator {
     /// For the estimators that rotate the measured current into their own estimated frame
-    /// (the current-model MRAS): `sin_cos(θ̂)` of the last estimate and the measured current
-    /// of the last update in that frame, bit for bit what the caller would compute from
-    /// [`Estimate::theta`] and the same current. `None` for the others.
-    pub fn frame(&self) -> Option<(crate::angle::SinCos, crate::frames::Dq)> {
+    /// (the current-model MRAS): see [`Frame`]. `None` for the others.
+    pub fn frame(&self) -> Option<Frame> {
         match self {
-            AnyEstimator::MrasCurrent(e) => Some(e.frame()),
+            AnyEstimator::MrasCurrent(e) => {
+                let (sc, i_dq) = e.frame();
+                Some(Frame {
+                    sc,
+                    i_dq,
+                    sc_next: e.next_frame(),
+                })
+            }
             _ => None,
         }
     }

@@ -134,7 +134,7 @@ use crate::angle::{Angle, SinCos};
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq};
 use crate::num::{
-    Coef, PU_FRAC, Pu, UNIT_FRAC, Unit, mul, pu_from_f64, round_shift_sat, wmul_inline,
+    Coef, PU_FRAC, Pu, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, wmul_inline,
 };
 use crate::params::MotorParams;
 use crate::units::PerUnit;
@@ -439,10 +439,16 @@ pub struct MrasCurrent {
     config: MrasCurrentConfig,
     /// Adjustable-model current in the estimated frame.
     i_hat: Dq,
-    /// Estimated angle, 2⁶⁴ per turn.
+    /// Estimated angle of the last update, 2⁶⁴ per turn.
     theta: u64,
     /// sin/cos of the angle of the last update (the frame of `i_hat`).
     sc: SinCos,
+    /// The angle of the next update, `θ̂ + ω̂ T_s` (eq. 23 with the speed held over the
+    /// coming period), 2⁶⁴ per turn, and its sin/cos: computed at the end of an update, so
+    /// that the drive turns its voltage to the coming period's mid angle from the two frames
+    /// without a sin/cos of its own (see [`MrasCurrent::next_frame`]).
+    theta_next: u64,
+    sc_next: SinCos,
     /// The measured current of the last update in that frame (`park(i, sc)`).
     i_dq: Dq,
     /// Speed integrator `I`, Q9.55, within `±ω_max`.
@@ -464,6 +470,8 @@ impl MrasCurrent {
             i_hat: Dq::default(),
             theta: 0,
             sc: Angle::ZERO.sin_cos(),
+            theta_next: 0,
+            sc_next: Angle::ZERO.sin_cos(),
             i_dq: Dq::default(),
             integ: 0,
             xi: Pu::ZERO,
@@ -499,29 +507,41 @@ impl MrasCurrent {
         (self.sc, self.i_dq)
     }
 
-    fn angle(&self) -> Angle {
-        // Round the 2^-64 turn to the nearest 2^-32 turn.
-        Angle((self.theta.wrapping_add(1 << 31) >> 32) as u32 as i32)
+    /// sin/cos of the next update's frame angle, `θ̂ + ω̂ T_s` with the last estimate: the
+    /// rotor frame at the end of the coming PWM period.
+    pub fn next_frame(&self) -> SinCos {
+        self.sc_next
     }
 
+    /// Advances the next frame from the last update's angle by the speed `omega` held over the
+    /// coming period.
+    #[inline(always)]
+    fn prepare_next(&mut self, omega: Pu) {
+        let step = (wide(omega.to_bits(), self.config.turn_per_speed) as u64) << TURN_SHIFT;
+        self.theta_next = self.theta.wrapping_add(step);
+        self.sc_next = angle_of(self.theta_next).sin_cos();
+    }
+
+    fn angle(&self) -> Angle {
+        angle_of(self.theta)
+    }
+
+    /// The estimate: angle and speed. The EMF is left at zero (the model does not estimate it;
+    /// it is `ψ ω̂ (−sin θ̂, cos θ̂)` of these, for a caller that wants it).
     #[inline(always)]
     fn make_estimate(&self, omega: Pu) -> Estimate {
-        // ψ is 1 pu with the bases of `PerUnit` (ψ_b = ψ): no product then.
-        let m = if self.config.psi.to_bits() == 1 << PU_FRAC {
-            omega
-        } else {
-            mul(self.config.psi, omega)
-        };
         Estimate {
             theta: self.angle(),
             omega,
-            // −ψ ω̂ sin θ̂ as ψ ω̂ (−sin θ̂).
-            emf: AlphaBeta {
-                alpha: Pu::from_bits(mul30(m.to_bits(), neg(self.sc.sin))),
-                beta: Pu::from_bits(mul30(m.to_bits(), self.sc.cos.to_bits())),
-            },
+            emf: AlphaBeta::default(),
         }
     }
+}
+
+/// The 2⁻⁶⁴ turn rounded to the nearest 2⁻³² turn.
+#[inline(always)]
+fn angle_of(theta: u64) -> Angle {
+    Angle((theta.wrapping_add(1 << 31) >> 32) as u32 as i32)
 }
 
 // The products of one update, all inlined (also on ARMv6-M, where `wmul_inline` is the
@@ -555,10 +575,6 @@ fn dot30(a: i32, u: i32, b: i32, v: i32) -> i32 {
 }
 
 /// `a u` rounded by 2³⁰ (a signal times sin or cos).
-#[inline(always)]
-fn mul30(a: i32, u: i32) -> i32 {
-    round_shift_sat(wmul_inline(a, u), UNIT_FRAC)
-}
 
 /// `−u` for a sin or cos (magnitude at most 2³⁰ + 2²² in bits: cannot wrap).
 #[inline(always)]
@@ -638,15 +654,14 @@ fn integrate_saturated(c: &MrasCurrentConfig, raw: i64, integ: i64, xi: Pu) -> i
 
 impl Estimator for MrasCurrent {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
-        let c = &self.config;
         let omega = self.last.omega;
-        // Frame advance over [t_{k−1}, t_k) with the speed held over it (eq. 23): an exact
-        // product, shifted; the angle wraps by design.
-        let step = (wide(omega.to_bits(), c.turn_per_speed) as u64) << TURN_SHIFT;
-        self.theta = self.theta.wrapping_add(step);
+        // Frame advance over [t_{k−1}, t_k) with the speed held over it (eq. 23): prepared at
+        // the end of the last update (an exact product, shifted; the angle wraps by design).
+        self.theta = self.theta_next;
         let sc_prev = self.sc;
-        let sc = self.angle().sin_cos();
+        let sc = self.sc_next;
         self.sc = sc;
+        let c = &self.config;
         let i = park_in(input.i, sc);
         self.i_dq = i;
         if self.seed {
@@ -655,6 +670,7 @@ impl Estimator for MrasCurrent {
             self.i_hat = i;
             self.xi = Pu::ZERO;
             self.last = self.make_estimate(omega);
+            self.prepare_next(omega);
             return self.last;
         }
         // Model, eq. 15: the Strang step (half R–L step, exact rotation, half R–L step)
@@ -709,6 +725,7 @@ impl Estimator for MrasCurrent {
         let i_pu = Pu::from_bits(((integ + (1 << (INTEG_EXTRA - 1))) >> INTEG_EXTRA) as i32);
         let omega = p.saturating_add(i_pu).max(-c.omega_max).min(c.omega_max);
         self.last = self.make_estimate(omega);
+        self.prepare_next(omega);
         self.last
     }
 
@@ -727,6 +744,7 @@ impl Estimator for MrasCurrent {
         self.i_load = Pu::ZERO;
         self.seed = true;
         self.last = self.make_estimate(omega);
+        self.prepare_next(omega);
     }
 }
 
