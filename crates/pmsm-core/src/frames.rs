@@ -8,7 +8,7 @@
 //! rounds once and saturates, so no input can make it wrap.
 
 use crate::angle::SinCos;
-use crate::num::{Pu, dot_unit, round_shift_sat};
+use crate::num::{Pu, dot_unit, round_shift_sat, wmul};
 
 /// Three phase quantities, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -40,11 +40,11 @@ pub struct Dq {
 }
 
 /// 1/3 in Q1.31 (rounded).
-const ONE_THIRD_Q31: i64 = 715_827_883;
+const ONE_THIRD_Q31: i32 = 715_827_883;
 /// 1/√3 in Q1.31 (rounded).
-const INV_SQRT3_Q31: i64 = 1_239_850_262;
+const INV_SQRT3_Q31: i32 = 1_239_850_262;
 /// √3/2 in Q1.31 (rounded).
-const SQRT3_2_Q31: i64 = 1_859_775_393;
+const SQRT3_2_Q31: i32 = 1_859_775_393;
 
 /// Amplitude-invariant Clarke transform: `α = (2a − b − c)/3`, `β = (b − c)/√3`.
 ///
@@ -56,8 +56,20 @@ pub fn clarke(x: Abc) -> AlphaBeta {
         x.c.to_bits() as i64,
     );
     AlphaBeta {
-        alpha: Pu::from_bits(round_shift_sat((2 * a - b - c) * ONE_THIRD_Q31, 31)),
-        beta: Pu::from_bits(round_shift_sat((b - c) * INV_SQRT3_Q31, 31)),
+        alpha: Pu::from_bits(scale_q31(2 * a - b - c, ONE_THIRD_Q31)),
+        beta: Pu::from_bits(scale_q31(b - c, INV_SQRT3_Q31)),
+    }
+}
+
+/// `x · k / 2³¹` rounded and saturated, for a sum `|x| < 2³⁴` of phase values: one 32×32
+/// product when `x` fits an `i32` (any phase values within ±32 pu), the exact `i64` product
+/// otherwise.
+#[inline(always)]
+fn scale_q31(x: i64, k: i32) -> i32 {
+    if x == x as i32 as i64 {
+        round_shift_sat(wmul(x as i32, k), 31)
+    } else {
+        round_shift_sat(x * k as i64, 31)
     }
 }
 
@@ -67,7 +79,7 @@ pub fn clarke_balanced(a: Pu, b: Pu) -> AlphaBeta {
     let (ai, bi) = (a.to_bits() as i64, b.to_bits() as i64);
     AlphaBeta {
         alpha: a,
-        beta: Pu::from_bits(round_shift_sat((ai + 2 * bi) * INV_SQRT3_Q31, 31)),
+        beta: Pu::from_bits(scale_q31(ai + 2 * bi, INV_SQRT3_Q31)),
     }
 }
 
@@ -76,7 +88,7 @@ pub fn inverse_clarke(v: AlphaBeta) -> Abc {
     let (al, be) = (v.alpha.to_bits() as i64, v.beta.to_bits() as i64);
     // Work in Q.31 of the input: −α/2 is exact there.
     let half_alpha = -(al << 30);
-    let beta_term = be * SQRT3_2_Q31;
+    let beta_term = wmul(be as i32, SQRT3_2_Q31);
     Abc {
         a: v.alpha,
         b: Pu::from_bits(round_shift_sat(half_alpha + beta_term, 31)),

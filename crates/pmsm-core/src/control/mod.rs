@@ -252,7 +252,7 @@ pub fn circle_room(r: Pu, x: Pu) -> Pu {
     let sq = if r < 1 << 30 {
         wmul((r - x) as i32, (r + x) as i32) as u64
     } else {
-        (r - x) as u64 * (r + x) as u64
+        crate::num::umul(r - x, r + x)
     };
     Pu::from_bits(sat_i32(isqrt_fast(sq) as i64))
 }

@@ -459,6 +459,18 @@ impl Drive {
     /// The trip checks of every sample.
     fn protection(&self, input: &DriveInput) -> Option<Fault> {
         let p = &self.config.protection;
+        // The common case in comparisons only (the limit is positive, so its negation fits).
+        let oc = p.overcurrent.to_bits();
+        let within = |x: Pu| (-oc..=oc).contains(&x.to_bits());
+        let i = &input.i_abc;
+        if within(i.a)
+            && within(i.b)
+            && within(i.c)
+            && input.vdc >= p.vdc_min
+            && input.vdc <= p.vdc_max
+        {
+            return None;
+        }
         let worst = input
             .i_abc
             .a

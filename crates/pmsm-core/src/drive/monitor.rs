@@ -12,7 +12,7 @@
 //! |---|---|---|
 //! | current sensor (sum) | `|i_a + i_b + i_c|` filtered over 1 ms above 0.15 `I_b` | 1–3 ms |
 //! | current sensor (stuck) | a phase reading the same bits for 50 ms while the rotor turns and another phase changes | 50 ms |
-//! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (10 ms) below 5 % of the three's sum (a third when balanced) for 2 ms, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `1/τ` (`τ` the filter's time constant; 100 rad/s electrical at 10 ms) for `2τ`, at any load | 30–40 ms (no load; under load the loss-of-lock check is often first) |
+//! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (10 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) for 2 ms, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `1/τ` (`τ` the filter's time constant; 100 rad/s electrical at 10 ms) for `2τ`, at any load | 30–40 ms (no load; under load the loss-of-lock check is often first) |
 //! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed below half the reference for 150 ms | 150 ms |
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
 
@@ -37,7 +37,7 @@ pub(crate) struct MonitorConfig {
     /// Least speed for the phase-loss test, per unit: `1/τ` of its filter (`τ` the 10 ms
     /// filter), where the ripple of a balanced phase's filtered square is 45 % of its mean.
     pub phase_loss_speed: Pu,
-    /// Samples a phase must stay below 5 % of the power before it trips (2 ms).
+    /// Samples a phase must stay below 3/64 of the power before it trips (2 ms).
     pub phase_loss_samples: u32,
     /// Samples the test's conditions must hold before it counts: two time constants of its
     /// filter.
@@ -98,7 +98,7 @@ pub(crate) struct Monitor {
     same: [u32; 3],
     /// Filtered `i_x²` of each phase (Q8.12 squares, see [`phase_power`]).
     power: [u32; 3],
-    /// Samples each phase has been below 5 % of the total power.
+    /// Samples each phase has been below 3/64 of the total power.
     weak: [u32; 3],
     /// Samples the phase-loss test's conditions have held.
     armed: u32,
@@ -138,20 +138,23 @@ impl Monitor {
         if self.sum > c.sum_limit {
             return Some(Fault::CurrentSensor(None));
         }
-        let turning = s.omega.saturating_abs() > c.turning;
+        let speed = s.omega.saturating_abs();
+        let turning = speed > c.turning;
         // Stuck channel: the same bits for 50 ms while the rotor turns and others change.
-        let bits = ph.map(Pu::to_bits);
-        let mut changed = [false; 3];
-        for ((c, b), last) in changed.iter_mut().zip(bits).zip(self.last_bits) {
-            *c = b != last;
-        }
-        for (k, count) in self.same.iter_mut().enumerate() {
-            let mine = changed.get(k).copied().unwrap_or(true);
-            let others = changed.iter().enumerate().any(|(j, c)| j != k && *c);
-            // A sample where nothing else moved says nothing: hold the count.
+        let bits = [ph[0].to_bits(), ph[1].to_bits(), ph[2].to_bits()];
+        let changed = [
+            bits[0] != self.last_bits[0],
+            bits[1] != self.last_bits[1],
+            bits[2] != self.last_bits[2],
+        ];
+        self.last_bits = bits;
+        let any = changed[0] | changed[1] | changed[2];
+        for (k, (count, mine)) in self.same.iter_mut().zip(changed).enumerate() {
+            // Another phase moved when any did and this one did not. A sample where nothing
+            // else moved says nothing: hold the count.
             *count = if mine || !turning {
                 0
-            } else if others {
+            } else if any {
                 count.saturating_add(1)
             } else {
                 *count
@@ -160,30 +163,29 @@ impl Monitor {
                 return Some(Fault::CurrentSensor(Some(k as u8)));
             }
         }
-        self.last_bits = bits;
-        // Phase loss: one phase carries under 5 % of the current's power (a third when
-        // balanced) while the rotor turns fast enough for the filter to average a period's
+        // Phase loss: one phase carries under 3/64 (4.7 %) of the current's power (a third
+        // when balanced) while the rotor turns fast enough for the filter to average a period's
         // ripple away. An open phase keeps its current at zero (noise only), whatever the load:
         // the other two then carry ±the same current, and its share falls with the filter.
+        let mut total = 0u32;
         for (p, x) in self.power.iter_mut().zip(ph) {
             let sq = phase_power(x);
-            *p = p.saturating_add_signed((sq.wrapping_sub(*p) as i32) >> c.ms10);
+            // Both ≤ 2³⁰: the difference fits an i32, the filtered value stays in [0, 2³⁰].
+            *p = p.wrapping_add_signed((sq.wrapping_sub(*p) as i32) >> c.ms10);
+            total += *p; // ≤ 3·2³⁰
         }
-        let total = self.power.iter().fold(0u32, |t, p| t.saturating_add(*p));
-        let fast = s.omega.saturating_abs() > c.phase_loss_speed;
         // Armed once the conditions have held for two time constants: a current vector just
         // built from nothing (a load step at no load) or a filter that has just come up to
         // speed has not turned through every phase yet.
-        self.armed = if s.running && fast && total > c.min_power {
+        self.armed = if s.running && speed > c.phase_loss_speed && total > c.min_power {
             self.armed.saturating_add(1)
         } else {
             0
         };
         let armed = self.armed > c.phase_loss_arm_samples;
+        let low = (total >> 5) + (total >> 6);
         for (k, (p, weak)) in self.power.iter().zip(self.weak.iter_mut()).enumerate() {
-            // 20 p < total: u64 so that no product wraps.
-            let low = 20 * (*p as u64) < total as u64;
-            *weak = if armed && low {
+            *weak = if armed && *p < low {
                 weak.saturating_add(1)
             } else {
                 0
@@ -193,9 +195,10 @@ impl Monitor {
             }
         }
         // Stall: at the current limit and far below the reference for 150 ms.
-        let slow = s.omega.saturating_abs() < s.omega_ref.saturating_abs() / 2;
+        let speed_ref = s.omega_ref.saturating_abs();
+        let slow = speed < speed_ref >> 1;
         let limited = s.iq_ref.saturating_abs() >= c.stall_current;
-        self.stall = if s.running && limited && slow && s.omega_ref.saturating_abs() > c.turning {
+        self.stall = if s.running && limited && slow && speed_ref > c.turning {
             self.stall.saturating_add(1)
         } else {
             0
