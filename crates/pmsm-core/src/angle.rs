@@ -11,7 +11,8 @@
 //! gives `sin a` and `cos a` at the nearest of 1024 points per turn; the remainder
 //! `δ ∈ [−π/1024, π/1024]` is applied by the angle-sum identity with `sin δ ≈ δ − δ³/6`,
 //! `cos δ ≈ 1 − δ²/2`, whose truncation (`δ⁴/24 ≈ 2e−11`) is below half an LSB of Q2.30.
-//! Cost: one table read pair and six 32×32→64 multiplies.
+//! Cost: one table read pair, three 32×32→64 multiplies (`δ` and the two `sin δ` terms) and
+//! four 32-bit ones (the `δ²` and `δ³` terms need only a few bits of `δ`).
 //!
 //! Measured error against f64 over the whole input range: see `docs/PERFORMANCE.md`; the
 //! tests bound it at 3 LSB of Q2.30 (2.8e−9).
@@ -178,19 +179,24 @@ pub fn sin_cos(angle: Angle) -> SinCos {
         2 => (-s0, -c0),
         _ => (-c0, s0),
     };
-    // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2; |δ| ≤ π/1024. Every product
-    // below has two operands within i32 (table values ≤ 2^30, |δ| < 2^22): `wmul` forms it.
-    let delta = round_shift_sat(wmul_inline(rem, HALF_PI_Q30 as i32), UNIT_FRAC); // |δ| ≤ π/1024
-    let d2 = (wmul_inline(delta, delta) >> UNIT_FRAC) as i32; // δ², Q2.30
-    const SIXTH_Q30: i32 = 178_956_971; // 1/6 in Q2.30
-    let d3 = (wmul_inline(d2, delta) >> UNIT_FRAC) as i32;
-    let d3_6 = (wmul_inline(d3, SIXTH_Q30) >> UNIT_FRAC) as i32;
-    let sin_d = delta - d3_6;
-    let cos_d = (1i32 << UNIT_FRAC) - (d2 >> 1);
+    // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2; |δ| ≤ π/1024 < 2^21.7 LSB. The
+    // one product that needs all its bits is a 32×32→64 one (`wmul`).
+    let delta = round_shift_sat(wmul_inline(rem, HALF_PI_Q30 as i32), UNIT_FRAC);
+    // The small terms fit 32-bit products (one `MULS` each on every core): δ²/2 is below
+    // 2^12.4 LSB and δ³/6 below 6 LSB, so a few bits of δ are all they need.
+    let t = (delta + (1 << 6)) >> 7; // δ/2⁷, |t| < 2^14.7
+    let d2 = (t * t + (1 << 15)) >> 16; // δ² in Q2.30, within 0.4 LSB
+    let d3 = d2 * (delta >> 10); // δ³ in Q.50, |d3| < 2^25.1
+    const SIXTH_Q16: i32 = 10_923; // 1/6 in Q0.16
+    let sin_d = delta - (((d3 >> 8) * SIXTH_Q16 + (1 << 27)) >> 28); // δ − δ³/6
     let (s_a, c_a) = (s_a as i32, c_a as i32);
-    // sin(a+δ) = sin a cos δ + cos a sin δ; cos(a+δ) = cos a cos δ − sin a sin δ.
-    let sin = round_shift_sat(wmul_inline(s_a, cos_d) + wmul_inline(c_a, sin_d), UNIT_FRAC);
-    let cos = round_shift_sat(wmul_inline(c_a, cos_d) - wmul_inline(s_a, sin_d), UNIT_FRAC);
+    // x·(1 − cos δ) = x·δ²/2 for a table value |x| ≤ 2^30: x to 2^15 steps (0.1 LSB).
+    let half_d2 = |x: i32| (((x + (1 << 14)) >> 15) * d2 + (1 << 15)) >> 16;
+    // sin(a+δ) = sin a − sin a (1 − cos δ) + cos a sin δ; cos(a+δ) likewise.
+    let sin = (s_a - half_d2(s_a))
+        .saturating_add(round_shift_sat(wmul_inline(c_a, sin_d), UNIT_FRAC));
+    let cos = (c_a - half_d2(c_a))
+        .saturating_sub(round_shift_sat(wmul_inline(s_a, sin_d), UNIT_FRAC));
     SinCos {
         sin: Unit::from_bits(sin),
         cos: Unit::from_bits(cos),
