@@ -5,8 +5,10 @@
 //! of random healthy ones).
 //!
 //! The filters are first-order with the pole a power of two (a shift, no product): their time
-//! constants below are rounded to a power of two of samples (at 14 kHz, 1 ms is 16 samples,
-//! 2 ms 32, 10 ms 128).
+//! constants below are rounded to a power of two of their steps (at 14 kHz, 1 ms is 16
+//! samples). The sensor checks run every sample; the phase-loss check runs on even samples and
+//! the stall and loss-of-lock checks on odd ones, so that no sample pays for all of them (their
+//! counts and filters are in steps of two samples: at 14 kHz 2 ms is 16 steps, 10 ms 64).
 //!
 //! | fault | evidence | time to trip |
 //! |---|---|---|
@@ -20,7 +22,8 @@ use super::Fault;
 use crate::frames::Abc;
 use crate::num::{Pu, pu_from_f64};
 
-/// Thresholds and filter poles, per unit and in samples.
+/// Thresholds and filter poles, per unit and in samples (`stuck_samples`, `settle_samples`,
+/// `ms1`) or in steps of two samples (the rest: the alternating checks).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MonitorConfig {
     pub sum_limit: Pu,
@@ -37,15 +40,15 @@ pub(crate) struct MonitorConfig {
     /// Least speed for the phase-loss test, per unit: `1/τ` of its filter (`τ` the 10 ms
     /// filter), where the ripple of a balanced phase's filtered square is 45 % of its mean.
     pub phase_loss_speed: Pu,
-    /// Samples a phase must stay below 3/64 of the power before it trips (2 ms).
+    /// Steps a phase must stay below 3/64 of the power before it trips (2 ms).
     pub phase_loss_samples: u32,
-    /// Samples the test's conditions must hold before it counts: two time constants of its
+    /// Steps the test's conditions must hold before it counts: two time constants of its
     /// filter.
     pub phase_loss_arm_samples: u32,
     pub stall_samples: u32,
     /// 90 % of the speed loop's current limit, per unit.
     pub stall_current: Pu,
-    /// Largest plausible change of the estimated speed per sample, per unit.
+    /// Largest plausible change of the estimated speed per step (two samples), per unit.
     pub accel_limit: Pu,
     /// Samples after entering the closed loop before the lock is judged (the estimate settles
     /// after a detection or a handover).
@@ -61,16 +64,21 @@ impl MonitorConfig {
         max_accel_rad_s2: f64,
         current_limit_pu: f64,
     ) -> Option<Self> {
-        // τ/T_s samples to the nearest power of two, 1 to 2²⁰ samples.
-        let pole = |tau: f64| {
-            let k = libm::round(libm::log2(tau / ts));
+        // The phase-loss, stall and loss-of-lock checks run on alternate samples (see
+        // `Monitor::check`): their periods, counts and time constants are in steps of 2 T_s.
+        let ts2 = 2.0 * ts;
+        // τ/T to the nearest power of two, 1 to 2²⁰ steps of T.
+        let pole_of = |tau: f64, t: f64| {
+            let k = libm::round(libm::log2(tau / t));
             k.is_finite().then_some(k.clamp(0.0, 20.0) as u32)
         };
+        let pole = |tau: f64| pole_of(tau, ts);
+        let pole2 = |tau: f64| pole_of(tau, ts2);
         Some(Self {
             sum_limit: pu_from_f64(0.15),
             ms1: pole(1e-3)?,
-            ms2: pole(2e-3)?,
-            ms10: pole(10e-3)?,
+            ms2: pole2(2e-3)?,
+            ms10: pole2(10e-3)?,
             stuck_samples: libm::ceil(0.05 / ts) as u32,
             turning: pu_from_f64(0.02),
             min_power: {
@@ -78,13 +86,14 @@ impl MonitorConfig {
                 (1.5 * m * m) as u32
             },
             phase_loss_speed: pu_from_f64(
-                1.0 / (ts * libm::ldexp(1.0, pole(10e-3)? as i32)) / omega_b,
+                1.0 / (ts2 * libm::ldexp(1.0, pole2(10e-3)? as i32)) / omega_b,
             ),
-            phase_loss_samples: libm::ceil(2e-3 / ts) as u32,
-            phase_loss_arm_samples: 2 << pole(10e-3)?,
-            stall_samples: libm::ceil(0.15 / ts) as u32,
+            phase_loss_samples: libm::ceil(2e-3 / ts2) as u32,
+            phase_loss_arm_samples: 2 << pole2(10e-3)?,
+            stall_samples: libm::ceil(0.15 / ts2) as u32,
             stall_current: pu_from_f64(0.9 * current_limit_pu),
-            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts / omega_b),
+            // The speed step over 2 T_s.
+            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts2 / omega_b),
             settle_samples: libm::ceil(0.1 / ts) as u32,
         })
     }
@@ -102,6 +111,8 @@ pub(crate) struct Monitor {
     weak: [u32; 3],
     /// Samples the phase-loss test's conditions have held.
     armed: u32,
+    /// This sample is odd (stall and loss of lock) rather than even (phase loss).
+    odd: bool,
     stall: u32,
     last_omega: Option<Pu>,
     jerk: Pu,
@@ -163,6 +174,18 @@ impl Monitor {
                 return Some(Fault::CurrentSensor(Some(k as u8)));
             }
         }
+        self.running_for = if s.running {
+            self.running_for.saturating_add(1)
+        } else {
+            0
+        };
+        // The slower checks alternate, so that no sample pays for all of them: phase loss on
+        // even samples, stall and loss of lock on odd ones (their counts and filters are in
+        // steps of two samples).
+        self.odd = !self.odd;
+        if self.odd {
+            return self.check_motion(c, s, speed);
+        }
         // Phase loss: one phase carries under 3/64 (4.7 %) of the current's power (a third
         // when balanced) while the rotor turns fast enough for the filter to average a period's
         // ripple away. An open phase keeps its current at zero (noise only), whatever the load:
@@ -194,6 +217,11 @@ impl Monitor {
                 return Some(Fault::PhaseLoss(k as u8));
             }
         }
+        None
+    }
+
+    /// Stall and loss of lock (odd samples).
+    fn check_motion(&mut self, c: &MonitorConfig, s: &Signals, speed: Pu) -> Option<Fault> {
         // Stall: at the current limit and far below the reference for 150 ms.
         let speed_ref = s.omega_ref.saturating_abs();
         let slow = speed < speed_ref >> 1;
@@ -207,11 +235,6 @@ impl Monitor {
             return Some(Fault::Stall);
         }
         // Loss of lock: the estimate accelerating faster than the motor can, once settled.
-        self.running_for = if s.running {
-            self.running_for.saturating_add(1)
-        } else {
-            0
-        };
         if let Some(last) = self.last_omega.replace(s.omega)
             && self.running_for > c.settle_samples
         {
