@@ -20,9 +20,9 @@ fn ab(v: [f64; 2]) -> AlphaBeta {
 
 /// Random vectors up to 1.5× the circle, random angles, buses from 0.2 to 2× nominal: the
 /// voltage rebuilt from the duties is within 1 LSB of the f64 reference in the linear range
-/// (measured 0.63 LSB) and within 4 LSB on the circle (measured 1.6 LSB); the saturation flags
+/// (measured 0.08 LSB) and within 4 LSB on the circle (measured 1.2 LSB); the saturation flags
 /// agree except within 1e−6 of the circle; the duties of the fixed and f64 modulators differ
-/// by less than 5e−7 of the period (measured 2.7e−7).
+/// by less than 5e−7 of the period (measured 1.9e−7).
 #[test]
 fn rebuilt_voltage_matches_f64() {
     let cfg = SvpwmConfig::default();

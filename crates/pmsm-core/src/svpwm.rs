@@ -33,7 +33,7 @@
 //! | `1/v_dc` | normalised mantissa in `[2³⁰, 2³¹)` and a shift | one 32-bit division and two Newton steps per new bus reading ([`BusReciprocal`]) |
 //!
 //! Accuracy: the average voltage rebuilt from the duties matches an f64 model within 1 LSB of
-//! [`Pu`] in the linear range (measured 0.63) and 4 LSB on the circle (measured 1.6), tests in
+//! [`Pu`] in the linear range (measured 0.08) and 4 LSB on the circle (measured 1.2), tests in
 //! `tests/drive_parts_svpwm.rs`.
 
 use crate::error::ConfigError;
@@ -115,15 +115,21 @@ impl SvpwmConfig {
         }
         let bus = cache.get(vdc, self);
         let (v, saturated) = limit(v, bus.v_max);
-        let ph = inverse_clarke(v);
+        // To fractions of the bus first (two products), then the legs (one more):
+        // d_x = ½ + u_x − (max + min)/2 with u = v/v_dc, all in Q2.30. Inside the circle
+        // |u_x| ≤ 1/√3 and every difference below is at most 1 (2³⁰) in magnitude.
+        let u = AlphaBeta {
+            alpha: Pu::from_bits(bus.fraction(v.alpha.to_bits())),
+            beta: Pu::from_bits(bus.fraction(v.beta.to_bits())),
+        };
+        let ph = inverse_clarke(u);
         let (a, b, c) = (ph.a.to_bits(), ph.b.to_bits(), ph.c.to_bits());
-        let hi = a.max(b).max(c) as i64;
-        let lo = a.min(b).min(c) as i64;
-        // d = ½ + (v_x + v_0)/v_dc = ½ + (2 v_x − max − min)/(2 v_dc); the numerator is exact
-        // in i64 and at most v_dc ≤ 2³¹ in magnitude after the limit (saturated otherwise).
+        let hi = a.max(b).max(c);
+        let lo = a.min(b).min(c);
         let duty = |x: i32| -> Unit {
-            let num = sat_i32(2 * x as i64 - hi - lo);
-            let d = bus.scale(num).saturating_add(1 << (UNIT_FRAC - 1));
+            // (x − max) ≤ 0 ≤ (x − min): the sum cannot overflow; halved, rounded.
+            let num = x.saturating_sub(hi).saturating_add(x.saturating_sub(lo));
+            let d = (1 << (UNIT_FRAC - 1)) + ((num >> 1) + (num & 1));
             Unit::from_bits(d.clamp(0, 1 << UNIT_FRAC))
         };
         SvpwmOutput {
@@ -140,8 +146,8 @@ impl SvpwmConfig {
 }
 
 /// What the modulator needs of the last bus reading seen: the circle's radius and `2²⁹/v_dc`
-/// of the bits as a normalised mantissa `r` in `[2³⁰, 2³¹)` and a pre-shift: `num · 2²⁹/v_dc
-/// = ((num << pre) · r) >> 32`, so a duty is one product whose high word is the result.
+/// of the bits as a normalised mantissa `r` in `[2³⁰, 2³¹)` and a pre-shift: `x · 2³⁰/v_dc
+/// = ((x << pre) · r) >> 31`, so a fraction of the bus is one product and a constant shift.
 /// Recomputed only when the reading changes: a normalisation, one 32-bit division for 16 bits
 /// and two Newton steps for the rest, no 64-bit division.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -199,19 +205,19 @@ impl BusReciprocal {
         }
     }
 
-    /// `num · 2²⁹/v_dc`, rounded and saturated: the duty offset of a leg in Q2.30 for
-    /// `num = 2 v_x − max − min` in the bits of [`Pu`]. `num << pre` is exact for
-    /// `|num| < 2^(31 − pre)`, which holds for every leg inside the circle (`|num| ≤ v_dc`);
-    /// beyond it, it saturates and so does the duty.
+    /// `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`] (`x · 2³⁰/v_dc` of the bits), rounded
+    /// and saturated. `x << pre` is exact for `|x| < 2^(31 − pre)`, which holds for every
+    /// vector inside the circle (`|x| ≤ v_dc/√3`); beyond it, it saturates and so does the
+    /// result.
     #[inline(always)]
-    fn scale(self, num: i32) -> i32 {
-        let a = num << self.pre;
-        let a = if a >> self.pre == num {
+    fn fraction(self, x: i32) -> i32 {
+        let a = x << self.pre;
+        let a = if a >> self.pre == x {
             a
         } else {
-            (num >> 31) ^ i32::MAX
+            (x >> 31) ^ i32::MAX
         };
-        round_shift_sat(wmul(a, self.r), 32)
+        round_shift_sat(wmul(a, self.r), 31)
     }
 }
 
@@ -357,12 +363,12 @@ mod tests {
 
     proptest! {
         #[test]
-        fn bus_reciprocal_within_two_ulp(bits in 1i32..=i32::MAX, num in any::<i32>()) {
-            // The contract: |num| ≤ v_dc (a leg inside the circle).
-            let num = (num as i64 % (bits as i64 + 1)) as i32;
+        fn bus_reciprocal_within_two_ulp(bits in 1i32..=i32::MAX, x in any::<i32>()) {
+            // The contract: |x| ≤ v_dc (a vector inside the circle).
+            let x = (x as i64 % (bits as i64 + 1)) as i32;
             let r = BusReciprocal::of(bits);
-            let exact = num as f64 * (1u64 << 29) as f64 / bits as f64;
-            let got = r.scale(num) as f64;
+            let exact = x as f64 * (1u64 << 30) as f64 / bits as f64;
+            let got = r.fraction(x) as f64;
             if exact.abs() < 2.1e9 {
                 // 2⁻³⁰ relative from the mantissa, half an LSB from the rounding.
                 prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
