@@ -574,8 +574,6 @@ fn dot30(a: i32, u: i32, b: i32, v: i32) -> i32 {
     round_shift_sat(wmul_inline(a, u) + wmul_inline(b, v), UNIT_FRAC)
 }
 
-/// `a u` rounded by 2³⁰ (a signal times sin or cos).
-
 /// `−u` for a sin or cos (magnitude at most 2³⁰ + 2²² in bits: cannot wrap).
 #[inline(always)]
 fn neg(u: Unit) -> i32 {
