@@ -193,10 +193,10 @@ pub fn sin_cos(angle: Angle) -> SinCos {
     // x·(1 − cos δ) = x·δ²/2 for a table value |x| ≤ 2^30: x to 2^15 steps (0.1 LSB).
     let half_d2 = |x: i32| (((x + (1 << 14)) >> 15) * d2 + (1 << 15)) >> 16;
     // sin(a+δ) = sin a − sin a (1 − cos δ) + cos a sin δ; cos(a+δ) likewise.
-    let sin = (s_a - half_d2(s_a))
-        .saturating_add(round_shift_sat(wmul_inline(c_a, sin_d), UNIT_FRAC));
-    let cos = (c_a - half_d2(c_a))
-        .saturating_sub(round_shift_sat(wmul_inline(s_a, sin_d), UNIT_FRAC));
+    let sin =
+        (s_a - half_d2(s_a)).saturating_add(round_shift_sat(wmul_inline(c_a, sin_d), UNIT_FRAC));
+    let cos =
+        (c_a - half_d2(c_a)).saturating_sub(round_shift_sat(wmul_inline(s_a, sin_d), UNIT_FRAC));
     SinCos {
         sin: Unit::from_bits(sin),
         cos: Unit::from_bits(cos),

@@ -38,7 +38,7 @@
 //! # Formats
 //!
 //! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM`:
-//! [`Coef<31>`](crate::num::Coef) (below 0.1); `16/i_band`: [`Gain`]. `s_x`: Q4.28 in [−1, 1]
+//! [`Coef<31>`](crate::num::Coef) (below 0.1); `1/i_band`: [`Reciprocal`](crate::num::Reciprocal). `s_x`: Q4.28 in [−1, 1]
 //! (a current more than `i_band` from zero is ±1 without a product). `V_dt` is formed as the
 //! Clarke transform of the signs, scaled once: `α = V_dead (2s_a − s_b − s_c)/3`,
 //! `β = V_dead (s_b − s_c)/√3` (the sign sums exact in Q4.28, `V_dead/3` and `V_dead/√3` in
@@ -47,7 +47,7 @@
 
 use crate::error::ConfigError;
 use crate::frames::{Abc, AlphaBeta, inverse_clarke};
-use crate::num::{Coef, Gain, Pu, pu_from_f64, round_shift_sat, wmul};
+use crate::num::{Coef, Pu, Reciprocal, pu_from_f64, round_shift_sat, wmul};
 use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative};
 use crate::units::PerUnit;
 
@@ -134,8 +134,9 @@ pub struct DeadTimeConfig {
     k_bus: Coef<31>,
     /// `[(V_sat + V_f)/2 − T_eff f_PWM (V_sat − V_f)] / V_b`.
     v_const: Pu,
-    /// `16/i_band`, per unit: a [`Pu`] current times it is its sign `sat(i/i_band)` in Q4.28.
-    inv_band: Gain,
+    /// `1/i_band` (the band in LSB of [`Pu`], not rounded): `sat(i/i_band)` of a current inside
+    /// the band is one product.
+    inv_band: Reciprocal,
     /// `i_band` in LSB of [`Pu`], rounded up: beyond it the sign is ±1 exactly.
     band_bits: i32,
     /// The design (SI).
@@ -188,12 +189,14 @@ impl DeadTimeConfig {
                 max: 0.1,
             })?,
             v_const: pu_from_f64(v_const / base.voltage_v),
-            inv_band: Gain::new(16.0 * base.current_a / band).ok_or(ConfigError::Gain {
-                key: "deadtime.band_a",
-                value: band,
-                min: 1e-6 * base.current_a,
-                max: 10.0 * base.current_a,
-            })?,
+            inv_band: Reciprocal::from_f64(band / base.current_a * (1u64 << 24) as f64).ok_or(
+                ConfigError::Gain {
+                    key: "deadtime.band_a",
+                    value: band,
+                    min: 1e-6 * base.current_a,
+                    max: 10.0 * base.current_a,
+                },
+            )?,
             // band ≤ 10 I_b: at most 10·2²⁴ + 1 LSB.
             band_bits: libm::ceil(band / base.current_a * (1u64 << 24) as f64) as i32,
             design,
@@ -210,10 +213,9 @@ impl DeadTimeConfig {
         self.k_bus.apply(vdc).saturating_add(self.v_const)
     }
 
-    /// `sat(i/i_band)` in [−1, 1], Q4.28. Beyond `band_bits` the product would be at least
-    /// one (the gain is within 2⁻³⁰ of `16/i_band` and `band_bits ≥ i_band`, so `|i| ≥ i_band +
-    /// 1 LSB` gives `|i|·g ≥ 16 (1 + 2⁻²⁸)(1 − 2⁻³⁰) > 16`): ±1 without the product, the same
-    /// bits as the clamp.
+    /// `sat(i/i_band)` in [−1, 1], Q4.28. Beyond `band_bits` (the band rounded up to an
+    /// LSB) ±1 without the product; inside, `i/i_band` from the reciprocal (within one LSB of
+    /// Q4.28), clamped.
     #[inline(always)]
     fn sign(&self, i: Pu) -> i32 {
         let x = i.to_bits();
@@ -222,7 +224,8 @@ impl DeadTimeConfig {
         } else if x < -self.band_bits {
             -SIGN_ONE
         } else {
-            self.inv_band.apply_bits(x).clamp(-SIGN_ONE, SIGN_ONE)
+            // Q2.30 to Q4.28, rounded.
+            ((self.inv_band.fraction(x) + 2) >> 2).clamp(-SIGN_ONE, SIGN_ONE)
         }
     }
 

@@ -56,7 +56,10 @@ pub fn clarke(x: Abc) -> AlphaBeta {
     let two_a = a.saturating_sub(b).saturating_add(a.saturating_sub(c));
     AlphaBeta {
         alpha: Pu::from_bits(round_shift_sat(wmul(two_a, ONE_THIRD_Q31), 31)),
-        beta: Pu::from_bits(round_shift_sat(wmul(b.saturating_sub(c), INV_SQRT3_Q31), 31)),
+        beta: Pu::from_bits(round_shift_sat(
+            wmul(b.saturating_sub(c), INV_SQRT3_Q31),
+            31,
+        )),
     }
 }
 

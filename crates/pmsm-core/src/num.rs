@@ -159,6 +159,72 @@ const fn umul_halves(a: u32, b: u32) -> u64 {
     (((ah * bh) as u64) << 32) + (mid << 16) + (al * bl) as u64
 }
 
+/// `x/d` in Q2.30 for a divisor `d > 0` known only at run time (or with too wide a range
+/// for one binary point): a normalised mantissa `r ∈ [2³⁰, 2³¹)` of `2^(61 − pre)/d` and a
+/// pre-shift, so that `x/d = ((x << pre) · r) >> 31`, one product and constant shifts on the
+/// control path. Valid for `|x| ≤ d` (a fraction within ±1); beyond, `x << pre` saturates and
+/// so does the result.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Reciprocal {
+    r: i32,
+    pre: u32,
+}
+
+impl Reciprocal {
+    /// Of the integer `d` (e.g. the bits of a bus reading), on the control path: a
+    /// normalisation, one 32-bit division for 16 bits and two Newton steps for the rest (no
+    /// 64-bit division). `d ≤ 0` gives the zero reciprocal.
+    pub fn of(d: i32) -> Self {
+        if d <= 0 {
+            return Self::default();
+        }
+        let n = d.leading_zeros(); // 1..=31
+        let dn = (d as u32) << (n - 1); // [2^30, 2^31)
+        // q ≈ 2⁴⁸/d_n from a 32-bit division, r₀ = q·2¹³ ≈ 2⁶¹/d_n (≤ 2³¹).
+        let q = u32::MAX / (dn >> 16);
+        let mut r = ((q as i64) << 13).min(i32::MAX as i64) as i32;
+        // Newton on f(r) = 1/r − d_n/2⁶¹: r ← r + r·(2⁶¹ − d_n r)/2⁶¹; each step squares the
+        // relative error (2⁻¹⁴ → 2⁻²⁸ → below the 2⁻³¹ of the arithmetic). The residual
+        // |2⁶¹ − d_n r| < 2⁴⁸ is taken to 2⁻²⁹ first so the product stays in i64.
+        for _ in 0..2 {
+            let e = (((1i64 << 61) - wmul(dn as i32, r)) >> 29) as i32;
+            r = sat_i32(r as i64 + (wmul(r, e) >> 32));
+        }
+        Self {
+            r: r.max(0),
+            pre: n - 1,
+        }
+    }
+
+    /// Of a divisor given as a float in the same units as `x` (configuration time): exact to
+    /// the rounding of `r`, also for a divisor that is not an integer number of LSB. `None`
+    /// unless `1 ≤ d < 2³¹`.
+    pub fn from_f64(d: f64) -> Option<Self> {
+        if !(1.0..2_147_483_648.0).contains(&d) {
+            return None;
+        }
+        // The largest pre-shift keeping r = 2^(61 − pre)/d at or above 2³⁰.
+        let pre = libm::floor(31.0 - libm::log2(d)).clamp(0.0, 30.0) as u32;
+        let r = libm::round(libm::ldexp(1.0, 61 - pre as i32) / d);
+        Some(Self {
+            r: r.min(i32::MAX as f64) as i32,
+            pre,
+        })
+    }
+
+    /// `x/d` in Q2.30 (`x · 2³⁰/d`), rounded and saturated.
+    #[inline(always)]
+    pub fn fraction(self, x: i32) -> i32 {
+        let a = x << self.pre;
+        let a = if a >> self.pre == x {
+            a
+        } else {
+            (x >> 31) ^ i32::MAX
+        };
+        round_shift_sat(wmul(a, self.r), 31)
+    }
+}
+
 /// `a · b` for two [`Pu`] values, rounded to nearest and saturated.
 #[inline(always)]
 pub fn mul(a: Pu, b: Pu) -> Pu {
@@ -453,6 +519,27 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn reciprocal_within_half_lsb_and_two_ulp(d in 1i32..=i32::MAX, x in any::<i32>()) {
+            // The contract: |x| ≤ d.
+            let x = (x as i64 % (d as i64 + 1)) as i32;
+            let exact = x as f64 * (1u64 << 30) as f64 / d as f64;
+            for r in [Reciprocal::of(d), Reciprocal::from_f64(d as f64).unwrap()] {
+                let got = r.fraction(x) as f64;
+                // 2⁻³⁰ relative from the mantissa, half an LSB from the rounding.
+                prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
+            }
+        }
+
+        #[test]
+        fn reciprocal_of_fractional_divisors(d in 1.0f64..1e9, x in -1.0f64..1.0) {
+            let r = Reciprocal::from_f64(d).unwrap();
+            let xi = libm::round(x * d) as i32;
+            let exact = xi as f64 * (1u64 << 30) as f64 / d;
+            let got = r.fraction(xi) as f64;
+            prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
+        }
+
         #[test]
         fn round_shift_matches_exact_rounding(
             x in -(i64::MAX - (1i64 << 32) + 1)..=(i64::MAX - (1i64 << 32) + 1),

@@ -38,7 +38,7 @@
 
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, inverse_clarke};
-use crate::num::{Pu, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, sat_i32, umul, wmul};
+use crate::num::{Pu, Reciprocal, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, umul, wmul};
 use crate::params::in_range;
 
 /// `1/√3` in Q1.31 (rounded).
@@ -145,19 +145,14 @@ impl SvpwmConfig {
     }
 }
 
-/// What the modulator needs of the last bus reading seen: the circle's radius and `2²⁹/v_dc`
-/// of the bits as a normalised mantissa `r` in `[2³⁰, 2³¹)` and a pre-shift: `x · 2³⁰/v_dc
-/// = ((x << pre) · r) >> 31`, so a fraction of the bus is one product and a constant shift.
-/// Recomputed only when the reading changes: a normalisation, one 32-bit division for 16 bits
-/// and two Newton steps for the rest, no 64-bit division.
+/// What the modulator needs of the last bus reading seen: the circle's radius and the
+/// reading's [`Reciprocal`], recomputed only when the reading changes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BusReciprocal {
     /// The bus reading (bits of [`Pu`]) the rest belongs to; 0 when empty (never a valid bus).
     vdc: i32,
-    /// `⌊2⁶¹/v_n⌋` (within 2 LSB), `v_n` the reading shifted into `[2³⁰, 2³¹)`.
-    r: i32,
-    /// `n − 1`, `n` the leading zeros of the reading (0..=30 for a positive reading).
-    pre: u32,
+    /// `1/v_dc`: `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`].
+    recip: Reciprocal,
     /// `m v_dc/√3`.
     v_max: Pu,
 }
@@ -170,54 +165,20 @@ impl BusReciprocal {
     fn get(&mut self, vdc: Pu, m: &SvpwmConfig) -> Self {
         let bits = vdc.to_bits();
         if bits != self.vdc || self.v_max == Pu::ZERO {
-            *self = Self::of(bits);
-            self.v_max = m.v_max(vdc);
+            *self = Self {
+                vdc: bits,
+                recip: Reciprocal::of(bits),
+                v_max: m.v_max(vdc),
+            };
         }
         *self
     }
 
-    fn of(bits: i32) -> Self {
-        if bits <= 0 {
-            return Self {
-                vdc: bits,
-                r: 0,
-                pre: 0,
-                v_max: Pu::ZERO,
-            };
-        }
-        let n = bits.leading_zeros(); // 1..=31
-        let vn = (bits as u32) << (n - 1); // [2^30, 2^31)
-        // 16 bits from a 32-bit division: q ≈ 2⁴⁸/v_n, r₀ = q·2¹³ ≈ 2⁶¹/v_n (≤ 2³¹).
-        let q = u32::MAX / (vn >> 16);
-        let mut r = ((q as i64) << 13).min(i32::MAX as i64) as i32;
-        // Newton on f(r) = 1/r − v_n/2⁶¹: r ← r + r·(2⁶¹ − v_n r)/2⁶¹; each step squares the
-        // relative error (2⁻¹⁴ → 2⁻²⁸ → below the 2⁻³¹ of the arithmetic). The residual
-        // |2⁶¹ − v_n r| < 2⁴⁸ is taken to 2⁻²⁹ first so the product stays in i64.
-        for _ in 0..2 {
-            let e = (((1i64 << 61) - wmul(vn as i32, r)) >> 29) as i32;
-            r = sat_i32(r as i64 + (wmul(r, e) >> 32));
-        }
-        Self {
-            vdc: bits,
-            r: r.max(0),
-            pre: n - 1,
-            v_max: Pu::ZERO,
-        }
-    }
-
-    /// `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`] (`x · 2³⁰/v_dc` of the bits), rounded
-    /// and saturated. `x << pre` is exact for `|x| < 2^(31 − pre)`, which holds for every
-    /// vector inside the circle (`|x| ≤ v_dc/√3`); beyond it, it saturates and so does the
-    /// result.
+    /// `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`], rounded and saturated; exact to the
+    /// rounding for every vector inside the circle (`|x| ≤ v_dc/√3`).
     #[inline(always)]
     fn fraction(self, x: i32) -> i32 {
-        let a = x << self.pre;
-        let a = if a >> self.pre == x {
-            a
-        } else {
-            (x >> 31) ^ i32::MAX
-        };
-        round_shift_sat(wmul(a, self.r), 31)
+        self.recip.fraction(x)
     }
 }
 
@@ -362,19 +323,6 @@ mod tests {
     }
 
     proptest! {
-        #[test]
-        fn bus_reciprocal_within_two_ulp(bits in 1i32..=i32::MAX, x in any::<i32>()) {
-            // The contract: |x| ≤ v_dc (a vector inside the circle).
-            let x = (x as i64 % (bits as i64 + 1)) as i32;
-            let r = BusReciprocal::of(bits);
-            let exact = x as f64 * (1u64 << 30) as f64 / bits as f64;
-            let got = r.fraction(x) as f64;
-            if exact.abs() < 2.1e9 {
-                // 2⁻³⁰ relative from the mantissa, half an LSB from the rounding.
-                prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
-            }
-        }
-
         #[test]
         fn rsqrt_within_four_lsb(x in (1u32 << 30)..=u32::MAX) {
             let exact = (1u64 << 30) as f64 / (x as f64 / 4_294_967_296.0).sqrt();

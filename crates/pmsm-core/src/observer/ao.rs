@@ -115,7 +115,12 @@ pub(crate) fn innovation_l1(measured: AlphaBeta, predicted: AlphaBeta) -> Pu {
         .alpha
         .saturating_sub(predicted.alpha)
         .saturating_abs()
-        .saturating_add(measured.beta.saturating_sub(predicted.beta).saturating_abs())
+        .saturating_add(
+            measured
+                .beta
+                .saturating_sub(predicted.beta)
+                .saturating_abs(),
+        )
 }
 
 pub(crate) fn approach_delta(

@@ -133,9 +133,7 @@ use super::{Estimate, Estimator, ObserverInput};
 use crate::angle::{Angle, SinCos};
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq};
-use crate::num::{
-    Coef, PU_FRAC, Pu, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, wmul_inline,
-};
+use crate::num::{Coef, PU_FRAC, Pu, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, wmul_inline};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
