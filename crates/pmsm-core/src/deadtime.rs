@@ -224,8 +224,7 @@ impl DeadTimeConfig {
         } else if x < -self.band_bits {
             -SIGN_ONE
         } else {
-            // Q2.30 to Q4.28, rounded.
-            ((self.inv_band.fraction(x) + 2) >> 2).clamp(-SIGN_ONE, SIGN_ONE)
+            self.inv_band.fraction_q28(x).clamp(-SIGN_ONE, SIGN_ONE)
         }
     }
 

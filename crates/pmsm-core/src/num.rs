@@ -215,13 +215,26 @@ impl Reciprocal {
     /// `x/d` in Q2.30 (`x · 2³⁰/d`), rounded and saturated.
     #[inline(always)]
     pub fn fraction(self, x: i32) -> i32 {
+        round_shift_sat(self.product(x), 31)
+    }
+
+    /// `x/d` in Q4.28 (`x · 2²⁸/d`), within one LSB (the high word of the product, halved
+    /// and rounded): for `|x| ≤ d` the result is within ±2²⁸ and needs no saturation.
+    #[inline(always)]
+    pub fn fraction_q28(self, x: i32) -> i32 {
+        (((self.product(x) >> 32) as i32) + 1) >> 1
+    }
+
+    /// `(x << pre) · r` = `x · 2⁶¹/d` (the shift saturated).
+    #[inline(always)]
+    fn product(self, x: i32) -> i64 {
         let a = x << self.pre;
         let a = if a >> self.pre == x {
             a
         } else {
             (x >> 31) ^ i32::MAX
         };
-        round_shift_sat(wmul(a, self.r), 31)
+        wmul(a, self.r)
     }
 }
 
@@ -538,6 +551,9 @@ mod tests {
             let exact = xi as f64 * (1u64 << 30) as f64 / d;
             let got = r.fraction(xi) as f64;
             prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
+            // Q4.28: within one LSB.
+            let got = r.fraction_q28(xi) as f64;
+            prop_assert!((got - exact / 4.0).abs() <= 1.0, "{} {}", got, exact / 4.0);
         }
 
         #[test]
