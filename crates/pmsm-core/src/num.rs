@@ -234,20 +234,20 @@ impl Reciprocal {
         } else {
             (x >> 31) ^ i32::MAX
         };
-        wmul(a, self.r)
+        wmul_inline(a, self.r)
     }
 }
 
 /// `a · b` for two [`Pu`] values, rounded to nearest and saturated.
 #[inline(always)]
 pub fn mul(a: Pu, b: Pu) -> Pu {
-    Pu::from_bits(round_shift_sat(wmul(a.to_bits(), b.to_bits()), PU_FRAC))
+    Pu::from_bits(round_shift_sat(wmul_inline(a.to_bits(), b.to_bits()), PU_FRAC))
 }
 
 /// `a · u` for a [`Pu`] signal and a [`Unit`] factor, rounded to nearest and saturated.
 #[inline(always)]
 pub fn mul_unit(a: Pu, u: Unit) -> Pu {
-    Pu::from_bits(round_shift_sat(wmul(a.to_bits(), u.to_bits()), UNIT_FRAC))
+    Pu::from_bits(round_shift_sat(wmul_inline(a.to_bits(), u.to_bits()), UNIT_FRAC))
 }
 
 /// `a · u + b · v` with a single rounding, saturated (the kernel of Park's rotation).
@@ -383,7 +383,7 @@ impl<const F: u32> Coef<F> {
     /// `value · x` for a signal in any Q format, in the same format; rounded, saturated.
     #[inline(always)]
     pub fn apply_bits(self, x: i32) -> i32 {
-        round_shift_sat(wmul(x, self.0), F)
+        round_shift_sat(wmul_inline(x, self.0), F)
     }
 
     /// `value · x` for a [`Pu`] signal, rounded to nearest and saturated.
@@ -395,7 +395,7 @@ impl<const F: u32> Coef<F> {
     /// The exact product `value · x · 2^F` (for accumulators that keep every bit).
     #[inline(always)]
     pub fn wide(self, x: i32) -> i64 {
-        wmul(x, self.0)
+        wmul_inline(x, self.0)
     }
 }
 

@@ -261,7 +261,7 @@ pub fn circle_room(r: Pu, x: Pu) -> Pu {
 /// `|c x| < |x|`, so the result always fits an `i32` and needs no saturation test.
 #[inline(always)]
 pub(crate) fn frac_mul(c: crate::num::Coef<31>, x: i32) -> i32 {
-    ((wmul(x, c.bits()) + (1 << 30)) >> 31) as i32
+    ((crate::num::wmul_inline(x, c.bits()) + (1 << 30)) >> 31) as i32
 }
 
 /// A gain as a [`WideGain`], or the typed error naming its key; `max` is the largest value the
