@@ -6,7 +6,8 @@
 #      thumbv6m-none-eabi (Cortex-M0, QEMU microbit) in release, with the recording embedded,
 #   3. runs each in qemu-system-arm -icount shift=8 (the runners of examples/qemu/.cargo),
 #   4. prints every `PIL ...` line the firmware printed, then `PIL PASS` (exit 0) if both runs
-#      exited 0 with an exact calibration, benchmark figures and a bit-exact replay, else
+#      exited 0 with an exact calibration, benchmark figures, a bit-exact replay and a drive
+#      step within its instruction budget (1500 on Cortex-M4, 4000 on Cortex-M0), else
 #      `PIL FAIL` (exit 1).
 #
 # Needs: rustup target add thumbv7em-none-eabihf thumbv6m-none-eabi;
@@ -58,6 +59,9 @@ PIL_RECORDING="$recording" cargo build --release -p pmsm-pil-firmware \
 status=0
 lines=()
 declare -A components
+# Instruction budgets of the full drive step, worst case over the recorded run: a run over its
+# budget fails.
+declare -A budgets=([cortex-m4]=1500 [cortex-m0]=4000)
 for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
   read -r cpu triple <<<"$run"
   run_log="$out/$cpu.log"
@@ -83,6 +87,15 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
     awk '{print $3}' | sort | tr '\n' ' ')"
   [[ -n $names ]] || problems+=("no benchmark figures")
   components[$cpu]="$names"
+  # The instruction budget of the full drive step (worst case over the recorded run).
+  budget=${budgets[$cpu]}
+  worst="$(grep -oE "^PIL $cpu drive_step insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
+    sed -E 's/.*insn_max=//')"
+  if [[ -z $worst ]]; then
+    problems+=("no drive_step figure")
+  elif ((worst > budget)); then
+    problems+=("drive_step insn_max=$worst over the budget of $budget")
+  fi
   if ((${#problems[@]})); then
     status=1
     log "$cpu: ${problems[*]}; last lines of $run_log:"
