@@ -19,6 +19,7 @@
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
+//! health_limit_pu = 0.5            # optional: trip on the estimator's health figure
 //!
 //! [initial]
 //! theta_e_deg = 40.0
@@ -252,6 +253,9 @@ pub struct Control {
     pub model_l_factor: Option<f64>,
     /// Its magnet flux times this.
     pub model_flux_factor: Option<f64>,
+    /// Trip on loss of lock when the estimator's filtered health figure exceeds this, per unit
+    /// (`Protection::health_limit_pu`; default: report only).
+    pub health_limit_pu: Option<f64>,
 }
 
 /// Where dead-time compensation applies (`deadtime_compensation`).
@@ -466,6 +470,7 @@ pub fn read(path: &Path) -> Result<Scenario> {
             ("control.model_rs_factor", raw.control.model_rs_factor),
             ("control.model_l_factor", raw.control.model_l_factor),
             ("control.model_flux_factor", raw.control.model_flux_factor),
+            ("control.health_limit_pu", raw.control.health_limit_pu),
         ] {
             if let Some(v) = v {
                 positive(key, v)?;

@@ -241,13 +241,19 @@ impl Reciprocal {
 /// `a · b` for two [`Pu`] values, rounded to nearest and saturated.
 #[inline(always)]
 pub fn mul(a: Pu, b: Pu) -> Pu {
-    Pu::from_bits(round_shift_sat(wmul_inline(a.to_bits(), b.to_bits()), PU_FRAC))
+    Pu::from_bits(round_shift_sat(
+        wmul_inline(a.to_bits(), b.to_bits()),
+        PU_FRAC,
+    ))
 }
 
 /// `a · u` for a [`Pu`] signal and a [`Unit`] factor, rounded to nearest and saturated.
 #[inline(always)]
 pub fn mul_unit(a: Pu, u: Unit) -> Pu {
-    Pu::from_bits(round_shift_sat(wmul_inline(a.to_bits(), u.to_bits()), UNIT_FRAC))
+    Pu::from_bits(round_shift_sat(
+        wmul_inline(a.to_bits(), u.to_bits()),
+        UNIT_FRAC,
+    ))
 }
 
 /// `a · u + b · v` with a single rounding, saturated (the kernel of Park's rotation).

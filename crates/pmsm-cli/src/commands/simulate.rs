@@ -2,8 +2,9 @@
 //!
 //! Output, one row per control sample: `t_s, speed_ref_rpm, speed_rpm, speed_est_rpm,
 //! theta_e_rad, theta_e_est_rad, i_d_a, i_q_a, i_q_ref_a, v_alpha_v, v_beta_v, duty_a, duty_b,
-//! duty_c, pwm_on, fault`. Angles in [−π, π); `i_d`, `i_q` in the true rotor frame; `i_q_ref`
-//! and the voltage are the controller's.
+//! duty_c, pwm_on, fault, health`. Angles in [−π, π); `i_d`, `i_q` in the true rotor frame;
+//! `i_q_ref` and the voltage are the controller's; `health` is the estimator's health figure as
+//! the drive's loss-of-lock check filters it (per unit; see `Estimator::health`).
 
 use crate::plot;
 use crate::scenario_file::{self, CompensationMode, InverterKind, ObserverKind, Scenario, Startup};
@@ -32,7 +33,7 @@ pub struct Args {
 }
 
 /// The output columns, in order.
-pub const OUTPUT_COLUMNS: [&str; 16] = [
+pub const OUTPUT_COLUMNS: [&str; 17] = [
     "t_s",
     "speed_ref_rpm",
     "speed_rpm",
@@ -49,6 +50,7 @@ pub const OUTPUT_COLUMNS: [&str; 16] = [
     "duty_c",
     "pwm_on",
     "fault",
+    "health",
 ];
 
 /// One control sample of a run, in SI units.
@@ -80,6 +82,9 @@ pub struct Row {
     pub state: DriveState,
     /// Largest phase current at this sample, A.
     pub i_peak_a: f64,
+    /// The estimator's health figure as the drive filters it, per unit (of `V_b` for the EMF
+    /// estimators, of `I_b` for the current-model MRAS; 0 outside the closed loop).
+    pub health: f64,
 }
 
 impl Row {
@@ -161,6 +166,7 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
         CompensationMode::Estimator => DeadTimeMode::Estimator,
         CompensationMode::Both => DeadTimeMode::Both,
     };
+    design.protection.health_limit_pu = sc.control.health_limit_pu;
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
     let c = &sc.control;
@@ -257,6 +263,7 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
             pwm_on: out.pwm_on,
             state: drive.state(),
             i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
+            health: pmsm_core::units::to_f64(drive.health()),
         });
         injector
             .apply(t, &mut plant, last_codes)
@@ -537,7 +544,15 @@ fn write_csv(path: &std::path::Path, rows: &[Row]) -> Result<()> {
             );
         }
         let line: Vec<String> = nums.iter().map(|x| format!("{x}")).collect();
-        writeln!(w, "{},{},{}", line.join(","), u8::from(r.pwm_on), r.fault()).map_err(err)?;
+        writeln!(
+            w,
+            "{},{},{},{}",
+            line.join(","),
+            u8::from(r.pwm_on),
+            r.fault(),
+            r.health
+        )
+        .map_err(err)?;
     }
     w.flush().map_err(err)
 }

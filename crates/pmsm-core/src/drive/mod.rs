@@ -198,6 +198,12 @@ impl Drive {
         &self.telemetry
     }
 
+    /// The estimator's health figure ([`Estimator::health`]) filtered over 10 ms, as the
+    /// loss-of-lock check sees it (zero outside the closed loop).
+    pub fn health(&self) -> Pu {
+        self.monitor.health()
+    }
+
     /// The result of the last initial position detection.
     pub fn ipd_result(&self) -> Option<IpdResult> {
         self.ipd_result
@@ -294,7 +300,10 @@ impl Drive {
             iq_ref: self.iq_ref,
             running: self.state == DriveState::Run,
         };
-        if let Some(fault) = self.monitor.check(&self.config.monitor, &signals) {
+        if let Some(fault) = self
+            .monitor
+            .check(&self.config.monitor, &signals, &self.estimator)
+        {
             return self.trip(fault);
         }
         match self.state {

@@ -21,6 +21,7 @@
 use super::Fault;
 use crate::frames::Abc;
 use crate::num::{Pu, pu_from_f64};
+use crate::observer::{AnyEstimator, Estimator};
 
 /// Thresholds and filter poles, per unit and in samples (`stuck_samples`, `settle_samples`,
 /// `ms1`) or in steps of two samples (the rest: the alternating checks).
@@ -53,6 +54,9 @@ pub(crate) struct MonitorConfig {
     /// Samples after entering the closed loop before the lock is judged (the estimate settles
     /// after a detection or a handover).
     pub settle_samples: u32,
+    /// Limit of the estimator's filtered health figure ([`Estimator::health`], filter
+    /// `ms10`), per unit of its own quantity; `Pu::MAX` never trips.
+    pub health_limit: Pu,
 }
 
 impl MonitorConfig {
@@ -63,6 +67,7 @@ impl MonitorConfig {
         omega_b: f64,
         max_accel_rad_s2: f64,
         current_limit_pu: f64,
+        health_limit: Pu,
     ) -> Option<Self> {
         // The phase-loss, stall and loss-of-lock checks run on alternate samples (see
         // `Monitor::check`): their periods, counts and time constants are in steps of 2 T_s.
@@ -95,6 +100,7 @@ impl MonitorConfig {
             // The speed step over 2 T_s.
             accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts2 / omega_b),
             settle_samples: libm::ceil(0.1 / ts) as u32,
+            health_limit,
         })
     }
 }
@@ -113,6 +119,8 @@ pub(crate) struct Monitor {
     armed: u32,
     /// This sample is odd (stall and loss of lock) rather than even (phase loss).
     odd: bool,
+    /// The estimator's health figure, filtered.
+    health: Pu,
     stall: u32,
     last_omega: Option<Pu>,
     jerk: Pu,
@@ -136,7 +144,7 @@ impl Monitor {
     }
 
     /// One sample of every check; the first fault found.
-    pub fn check(&mut self, c: &MonitorConfig, s: &Signals) -> Option<Fault> {
+    pub fn check(&mut self, c: &MonitorConfig, s: &Signals, e: &AnyEstimator) -> Option<Fault> {
         let ph = [s.i_abc.a, s.i_abc.b, s.i_abc.c];
         // Three currents of a star winding sum to zero.
         let sum = s
@@ -184,7 +192,7 @@ impl Monitor {
         // steps of two samples).
         self.odd = !self.odd;
         if self.odd {
-            return self.check_motion(c, s, speed);
+            return self.check_motion(c, s, speed, e);
         }
         // Phase loss: one phase carries under 3/64 (4.7 %) of the current's power (a third
         // when balanced) while the rotor turns fast enough for the filter to average a period's
@@ -221,7 +229,13 @@ impl Monitor {
     }
 
     /// Stall and loss of lock (odd samples).
-    fn check_motion(&mut self, c: &MonitorConfig, s: &Signals, speed: Pu) -> Option<Fault> {
+    fn check_motion(
+        &mut self,
+        c: &MonitorConfig,
+        s: &Signals,
+        speed: Pu,
+        e: &AnyEstimator,
+    ) -> Option<Fault> {
         // Stall: at the current limit and far below the reference for 150 ms.
         let speed_ref = s.omega_ref.saturating_abs();
         let slow = speed < speed_ref >> 1;
@@ -244,7 +258,22 @@ impl Monitor {
                 return Some(Fault::LossOfLock);
             }
         }
+        // Loss of lock: the estimator's own figure of how badly its model explains the
+        // measurements, filtered, once settled.
+        self.health = if s.running {
+            follow(self.health, e.health(), c.ms10)
+        } else {
+            Pu::ZERO
+        };
+        if self.running_for > c.settle_samples && self.health > c.health_limit {
+            return Some(Fault::LossOfLock);
+        }
         None
+    }
+
+    /// The estimator's health figure, filtered over 10 ms (zero outside the closed loop).
+    pub fn health(&self) -> Pu {
+        self.health
     }
 }
 

@@ -179,6 +179,10 @@ impl Estimator for Ao {
         self.last
     }
 
+    fn health(&self) -> Pu {
+        self.innovation
+    }
+
     fn reset(&mut self, theta: Angle, omega: Pu) {
         self.emf = emf_of(theta, omega, self.config.psi_pu);
         self.meter.restart();

@@ -48,6 +48,21 @@ pub trait Estimator {
     /// The estimate of the last [`Estimator::update`] (or of the last reset).
     fn estimate(&self) -> Estimate;
 
+    /// How badly the estimator's model explains the last measurement: zero when it explains
+    /// it exactly, growing as the lock is lost. Each estimator states what it measures (all
+    /// per unit, `|x| + |y|` norms: no product, no root):
+    ///
+    /// - [`Nlo`], [`Ao`]: the innovation, measured interval-mean EMF minus the predicted one,
+    ///   per unit of `V_b`;
+    /// - [`MrasEmf`]: `| |ẽ| − ψ |ω̂| |`, the adjustable model's EMF against the adapted speed,
+    ///   per unit of `V_b`;
+    /// - [`MrasCurrent`]: the model's current error `|i_d − î_d| + |i_q − î_q|` (eq. 16), per
+    ///   unit of `I_b`.
+    ///
+    /// The drive filters it and trips [`crate::drive::Fault::LossOfLock`] above a limit of the
+    /// estimator's kind (`crate::drive::Protection`).
+    fn health(&self) -> Pu;
+
     /// Restarts the estimator from a known rotor angle and speed (after an initial-position
     /// detection or an open-loop start), keeping its configuration.
     fn reset(&mut self, theta: Angle, omega: Pu);
@@ -208,6 +223,15 @@ impl Estimator for AnyEstimator {
             AnyEstimator::Ao(e) => e.estimate(),
             AnyEstimator::MrasEmf(e) => e.estimate(),
             AnyEstimator::MrasCurrent(e) => e.estimate(),
+        }
+    }
+
+    fn health(&self) -> Pu {
+        match self {
+            AnyEstimator::Nlo(e) => e.health(),
+            AnyEstimator::Ao(e) => e.health(),
+            AnyEstimator::MrasEmf(e) => e.health(),
+            AnyEstimator::MrasCurrent(e) => e.health(),
         }
     }
 

@@ -729,6 +729,15 @@ impl Estimator for MrasCurrent {
         self.last
     }
 
+    /// `|i_d − î_d| + |i_q − î_q|` of the last update (eq. 16), computed on request from the
+    /// stored currents: nothing on the update's path.
+    fn health(&self) -> Pu {
+        let (i, m) = (self.i_dq, self.i_hat);
+        i.d.saturating_sub(m.d)
+            .saturating_abs()
+            .saturating_add(i.q.saturating_sub(m.q).saturating_abs())
+    }
+
     fn reset(&mut self, theta: Angle, omega: Pu) {
         let omega = omega.max(-self.config.omega_max).min(self.config.omega_max);
         self.theta = (theta.0 as u32 as u64) << 32;

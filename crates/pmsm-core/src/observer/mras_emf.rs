@@ -192,6 +192,10 @@ impl Estimator for MrasEmf {
         self.last
     }
 
+    fn health(&self) -> Pu {
+        self.consistency
+    }
+
     fn reset(&mut self, theta: Angle, omega: Pu) {
         self.ao.reset(theta, omega);
         self.model = self.ao.estimate().emf;

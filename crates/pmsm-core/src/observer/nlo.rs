@@ -203,6 +203,10 @@ impl Estimator for Nlo {
         self.last
     }
 
+    fn health(&self) -> Pu {
+        self.innovation
+    }
+
     fn reset(&mut self, theta: Angle, omega: Pu) {
         self.emf = emf_of(theta, omega, self.config.psi_pu);
         let forward = omega >= Pu::ZERO;
