@@ -293,10 +293,11 @@ impl Drive {
             }
             None => estimate.omega,
         };
+        let omega_ref = self.run_speed_ref();
         let signals = monitor::Signals {
             i_abc: input.i_abc,
             omega: estimate.omega,
-            omega_ref: self.run_speed_ref(),
+            omega_ref,
             iq_ref: self.iq_ref,
             running: self.state == DriveState::Run,
         };
@@ -352,7 +353,7 @@ impl Drive {
                 self.control(i, input.i_abc, input.vdc, theta, omega, i_ref, None)
             }
             DriveState::Run => {
-                let speed = self.speed.step(self.run_speed_ref(), self.speed_filtered);
+                let speed = self.speed.step(omega_ref, self.speed_filtered);
                 self.iq_ref = speed.iq_ref;
                 let iq_ref = speed.iq_ref;
                 // The current-model MRAS already rotated this sample's current into the frame
