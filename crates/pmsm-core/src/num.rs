@@ -181,7 +181,8 @@ impl Reciprocal {
         let n = d.leading_zeros(); // 1..=31
         let dn = (d as u32) << (n - 1); // [2^30, 2^31)
         // q ≈ 2⁴⁸/d_n from a 32-bit division, r₀ = q·2¹³ ≈ 2⁶¹/d_n (≤ 2³¹).
-        let q = u32::MAX / (dn >> 16);
+        // dn >> 16 ≥ 2¹⁴; the checked form keeps a panic path out of the firmware.
+        let q = u32::MAX.checked_div(dn >> 16).unwrap_or(u32::MAX);
         let mut r = ((q as i64) << 13).min(i32::MAX as i64) as i32;
         // Newton on f(r) = 1/r − d_n/2⁶¹: r ← r + r·(2⁶¹ − d_n r)/2⁶¹; each step squares the
         // relative error (2⁻¹⁴ → 2⁻²⁸ → below the 2⁻³¹ of the arithmetic). The residual
