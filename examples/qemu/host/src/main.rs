@@ -20,9 +20,10 @@ use pmsm_pil::cases::{self, CASES, Io, Shape};
 use pmsm_pil::format;
 use pmsm_pil::setup::{DRIVE_SAMPLE_HZ, SAMPLE_HZ, Setup};
 
-/// Default number of steps per case (0.1 s at 20 kHz). The micro:bit's 256 KiB of flash
-/// holds the firmware and about 5000 steps of 8 words.
-const DEFAULT_STEPS: usize = 200;
+/// Default number of steps of the estimator cases (5 ms at 20 kHz, from the first sample of
+/// the trajectory). The micro:bit's 256 KiB of flash holds the firmware, the drive case and
+/// little more.
+const DEFAULT_STEPS: usize = 100;
 
 /// Default number of steps of the drive case (0.2 s at 14 kHz: initial position detection,
 /// the ramp to 800 r/min, a load step).
