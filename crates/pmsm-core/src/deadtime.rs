@@ -38,7 +38,7 @@
 //! # Formats
 //!
 //! Currents, voltages, bus: [`Pu`] (Q8.24) of `I_b`, `V_b`. `T_eff f_PWM`:
-//! [`Coef<31>`](crate::num::Coef) (below 0.1); `1/i_band`: [`Reciprocal`](crate::num::Reciprocal). `s_x`: Q4.28 in [−1, 1]
+//! [`Coef<31>`](crate::num::Coef) (below 0.1); `1/i_band`: [`Reciprocal`]. `s_x`: Q4.28 in [−1, 1]
 //! (a current more than `i_band` from zero is ±1 without a product). `V_dt` is formed as the
 //! Clarke transform of the signs, scaled once: `α = V_dead (2s_a − s_b − s_c)/3`,
 //! `β = V_dead (s_b − s_c)/√3` (the sign sums exact in Q4.28, `V_dead/3` and `V_dead/√3` in

@@ -1,6 +1,6 @@
 //! dq current controllers of seed 001 (§1, Fig. 5; equations.md §4.4).
 //!
-//! Two [`Pi`] controllers in the rotor frame, `i_d* = 0` by default (seed 001 §1), with the
+//! Two PI controllers ([`super::pi::FastPi`]) in the rotor frame, `i_d* = 0` by default (seed 001 §1), with the
 //! optional decoupling feed-forward of the dq model (seed 001 eq. 3–4, equations.md §2.2):
 //!
 //! ```text

@@ -17,6 +17,7 @@
 //! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (10 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) for 2 ms, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `1/τ` (`τ` the filter's time constant; 100 rad/s electrical at 10 ms) for `2τ`, at any load | 30–40 ms (no load; under load the loss-of-lock check is often first) |
 //! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed below half the reference for 150 ms | 150 ms |
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
+//! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu`, from 100 ms after entering the closed loop (off unless a limit is set) | 10–200 ms, by the limit |
 
 use super::Fault;
 use crate::frames::Abc;

@@ -89,7 +89,18 @@ fn run() -> bool {
     }
 
     let outcome = replay::run(&setup, &mut |name, steps| {
-        hprintln!("# {CPU} replay {name}: {steps} steps bit-exact");
+        if pmsm_pil::cases::SKIPPED.contains(&name) {
+            hprintln!("# {CPU} replay {name}: not built for this core");
+        } else {
+            hprintln!("# {CPU} replay {name}: {steps} steps bit-exact");
+        }
+        if name == "closed_loop" && steps > 0 {
+            // The drive and the plant both ran here, and agree with the host's run.
+            hprintln!(
+                "PIL {CPU} closed_loop bit_exact=true steps={}",
+                steps * pmsm_pil::cases::CLOSED_LOOP_CHUNK
+            );
+        }
     });
     match outcome {
         Outcome::Exact { steps, cases } => {

@@ -75,10 +75,10 @@ fn run() -> Result<(), String> {
     let setup = Setup::motor_a().map_err(|e| format!("motor A set-up: {e}"))?;
     let mut bytes = format::file_header(CASES.len() as u32).to_vec();
     for shape in CASES {
-        let steps = if shape.name == "drive" {
-            drive_steps
-        } else {
-            steps
+        let steps = match shape.name {
+            "drive" => drive_steps,
+            "closed_loop" => CLOSED_LOOP_STEPS,
+            _ => steps,
         };
         let mut io = scenario(shape, &setup, steps)?;
         let ran = cases::run_named(shape.name, &setup, &mut *io)
@@ -129,9 +129,60 @@ fn scenario(shape: &Shape, setup: &Setup, steps: usize) -> Result<Box<dyn Record
             estimator_inputs(setup, steps),
         ))),
         "drive" => Ok(Box::new(DriveLoop::new(steps)?)),
+        "closed_loop" => Ok(Box::new(Silent {
+            steps,
+            outputs: shape.outputs,
+            words: Vec::new(),
+        })),
         other => Err(format!(
             "no scenario for case {other}: add one in host/src/main.rs"
         )),
+    }
+}
+
+/// Recorded steps of the closed-loop case (each `CLOSED_LOOP_CHUNK` drive steps: 1400 steps,
+/// 0.1 s at 14 kHz; the plant's soft-float model is most of the target's time).
+const CLOSED_LOOP_STEPS: usize = 56;
+
+/// A case without inputs (the closed loop, whose plant runs inside it): `steps` steps, every
+/// output kept.
+struct Silent {
+    steps: usize,
+    outputs: usize,
+    words: Vec<i32>,
+}
+
+impl Io for Silent {
+    fn input(&mut self, step: usize, _input: &mut [i32]) -> bool {
+        step < self.steps
+    }
+    fn output(&mut self, _step: usize, output: &[i32]) -> bool {
+        self.words.extend_from_slice(output);
+        true
+    }
+}
+
+impl Recording for Silent {
+    fn words(&self) -> &[i32] {
+        &self.words
+    }
+    fn summary(&self, _setup: &Setup) -> String {
+        let Some(last) = self.words.rchunks(self.outputs).next() else {
+            return String::new();
+        };
+        let word = |j: usize| last.get(j).copied().unwrap_or(0);
+        let f = |hi: usize| {
+            f64::from_bits(((word(hi) as u32 as u64) << 32) | word(hi + 1) as u32 as u64)
+        };
+        format!(
+            "last step: state {}, plant {:.1} r/min, estimate off by {:+.2}°",
+            word(0),
+            f(4) * 60.0 / (2.0 * PI),
+            (Angle(word(1)).to_rad() - f(6) + PI)
+                .rem_euclid(2.0 * PI)
+                .to_degrees()
+                - 180.0
+        )
     }
 }
 
