@@ -19,6 +19,7 @@
 //! | [`control`] | PI current loops and the IP speed loop, with anti-windup |
 //! | [`ipd`] | initial rotor position from voltage pulses, with N/S polarity |
 //! | [`drive`] | the drive: state machine and data flow of one control step |
+//! | [`hal`] | the narrow hardware traits a board binding implements (PWM, current sampling) |
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -39,6 +40,7 @@ pub mod deadtime;
 pub mod drive;
 pub mod error;
 pub mod frames;
+pub mod hal;
 pub mod ipd;
 pub mod num;
 pub mod observer;

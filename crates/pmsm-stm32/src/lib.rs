@@ -13,9 +13,8 @@
 //! prescaler and period for a frequency, dead-time register encoding, ADC scaling to per unit,
 //! offset calibration, the speed knob, and the register values the `hw` module writes.
 //!
-//! The traits live here for now; the core should own them (design.md: "the core defines its
-//! own narrow traits ... and the binding implements them"), which is a move of this file's
-//! trait definitions into `pmsm-core` without other change.
+//! The traits are the core's ([`pmsm_core::hal`], re-exported here); this crate implements
+//! them for TIM1 and the ADCs.
 #![no_std]
 
 pub mod adc;
@@ -26,60 +25,16 @@ pub mod timing;
 #[allow(unsafe_code)]
 pub mod hw;
 
-use pmsm_core::drive::{Drive, DriveInput, DriveOutput};
-use pmsm_core::svpwm::Duties;
-
-/// A three-phase inverter driven by complementary PWM.
-pub trait ThreePhasePwm {
-    /// Sets the leg duties for the next PWM period (preloaded: applied at the next update).
-    fn set_duties(&mut self, duties: &Duties);
-    /// Turns the outputs on (after a break or a `disable`).
-    fn enable(&mut self);
-    /// Turns every switch off.
-    fn disable(&mut self);
-    /// True while the outputs are switching.
-    fn is_enabled(&self) -> bool;
-}
-
-/// The measurements of one control sample (phase currents and bus voltage, per unit), taken
-/// at the PWM centre.
-pub trait PhaseCurrentSampler {
-    /// The sample that triggered this control interrupt.
-    fn sample(&mut self) -> DriveInput;
-}
-
-/// One control interrupt: sample, step the drive, apply its output (duties first, then the
-/// outputs on; or the outputs off).
-pub fn control_step<P: ThreePhasePwm, S: PhaseCurrentSampler>(
-    drive: &mut Drive,
-    pwm: &mut P,
-    sampler: &mut S,
-) -> DriveOutput {
-    let input = sampler.sample();
-    let out = drive.step(&input);
-    apply(pwm, &out);
-    out
-}
-
-/// Applies a drive output to the inverter.
-pub fn apply<P: ThreePhasePwm>(pwm: &mut P, out: &DriveOutput) {
-    if out.pwm_on {
-        pwm.set_duties(&out.duties);
-        if !pwm.is_enabled() {
-            pwm.enable();
-        }
-    } else if pwm.is_enabled() {
-        pwm.disable();
-    }
-}
+pub use pmsm_core::hal::{PhaseCurrentSampler, ThreePhasePwm, apply, control_step};
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use pmsm_core::Abc;
     use pmsm_core::Pu;
-    use pmsm_core::drive::{DriveConfig, DriveDesign, DriveState};
+    use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState};
     use pmsm_core::observer::EstimatorKind;
+    use pmsm_core::svpwm::Duties;
     use pmsm_core::{InverterParams, MotorParams, PerUnit};
 
     #[derive(Default)]

@@ -1,0 +1,55 @@
+//! The narrow hardware traits a board binding implements (embedded-hal has no motor-control
+//! PWM or ADC traits), and one control interrupt's work over them.
+//!
+//! A binding (`pmsm-stm32` for the STM32G4) implements [`ThreePhasePwm`] for its timer and
+//! [`PhaseCurrentSampler`] for its ADC; its control interrupt calls [`control_step`]. Neither
+//! trait has an error path: a timer or an ADC that cannot do its job is a configuration
+//! problem of the binding's constructor, and a bad sample is the drive's to judge (its
+//! current-sensor checks).
+
+use crate::drive::{Drive, DriveInput, DriveOutput};
+use crate::svpwm::Duties;
+
+/// A three-phase inverter driven by complementary PWM.
+pub trait ThreePhasePwm {
+    /// Sets the leg duties for the next PWM period (preloaded: applied at the next update).
+    fn set_duties(&mut self, duties: &Duties);
+    /// Turns the outputs on (after a break or a `disable`).
+    fn enable(&mut self);
+    /// Turns every switch off.
+    fn disable(&mut self);
+    /// True while the outputs are switching.
+    fn is_enabled(&self) -> bool;
+}
+
+/// The measurements of one control sample (phase currents and bus voltage, per unit), taken
+/// at the PWM centre.
+pub trait PhaseCurrentSampler {
+    /// The sample that triggered this control interrupt.
+    fn sample(&mut self) -> DriveInput;
+}
+
+/// One control interrupt: sample, step the drive, apply its output (duties first, then the
+/// outputs on; or the outputs off).
+pub fn control_step<P: ThreePhasePwm, S: PhaseCurrentSampler>(
+    drive: &mut Drive,
+    pwm: &mut P,
+    sampler: &mut S,
+) -> DriveOutput {
+    let input = sampler.sample();
+    let out = drive.step(&input);
+    apply(pwm, &out);
+    out
+}
+
+/// Applies a drive output to the inverter.
+pub fn apply<P: ThreePhasePwm>(pwm: &mut P, out: &DriveOutput) {
+    if out.pwm_on {
+        pwm.set_duties(&out.duties);
+        if !pwm.is_enabled() {
+            pwm.enable();
+        }
+    } else if pwm.is_enabled() {
+        pwm.disable();
+    }
+}
