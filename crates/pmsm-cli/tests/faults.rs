@@ -71,6 +71,11 @@ fn open_phase_is_detected_within_50_ms() {
         ("b", 0.85),
         ("c", 1.8),
         ("b", 1.9),
+        ("a", 0.93),
+        ("b", 1.83),
+        ("c", 1.71),
+        ("a", 1.77),
+        ("c", 0.72),
     ] {
         let run = run_with(
             &format!("phase_open = \"{phase}\"\nphase_open_at_s = {at}\n"),

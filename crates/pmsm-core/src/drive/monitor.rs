@@ -14,7 +14,7 @@
 //! |---|---|---|
 //! | current sensor (sum) | `|i_a + i_b + i_c|` filtered over 1 ms above 0.15 `I_b` | 1–3 ms |
 //! | current sensor (stuck) | a phase reading the same bits for 50 ms while the rotor turns and another phase changes | 50 ms |
-//! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (10 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) for 2 ms, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `1/τ` (`τ` the filter's time constant; 100 rad/s electrical at 10 ms) for `2τ`, at any load | 30–40 ms (no load; under load the loss-of-lock check is often first) |
+//! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (5 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) through a quarter turn, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `0.5/τ` (`τ` the filter's time constant; 110 rad/s electrical at 5 ms) for `2τ`, at any load | 10–30 ms at 800 r/min on motor B, no load (under load the loss-of-lock check is often first) |
 //! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed below half the reference for 150 ms | 150 ms |
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
 //! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu`, from 100 ms after entering the closed loop (off unless a limit is set) | 10–200 ms, by the limit |
@@ -34,16 +34,22 @@ pub(crate) struct MonitorConfig {
     pub ms1: u32,
     pub ms2: u32,
     pub ms10: u32,
+    /// The phase-loss filter (5 ms), as the others.
+    pub ms5: u32,
     pub stuck_samples: u32,
     pub turning: Pu,
     /// Least filtered `Σ i_x²` (in the Q8.12 squares of [`phase_power`]) for the phase-loss
     /// test: (1 % of `I_b`)² times 3/2, the sum of a balanced 1 % current.
     pub min_power: u32,
-    /// Least speed for the phase-loss test, per unit: `1/τ` of its filter (`τ` the 10 ms
-    /// filter), where the ripple of a balanced phase's filtered square is 45 % of its mean.
+    /// Least speed for the phase-loss test, per unit: `0.5/τ` of its filter (`τ` the 5 ms
+    /// filter), where the ripple of a balanced phase's filtered square is 71 % of its mean
+    /// (its share still above 3/32, twice the threshold).
     pub phase_loss_speed: Pu,
-    /// Steps a phase must stay below 3/64 of the power before it trips (2 ms).
-    pub phase_loss_samples: u32,
+    /// Rotation a phase must stay below 3/64 of the power through before it trips: a quarter
+    /// turn (electrical), as the sum of the speed's bits over the steps. A healthy current
+    /// vector that was just built in one direction (a load step) turns through every phase
+    /// within it; an open phase stays dark.
+    pub phase_loss_turn: u64,
     /// Steps the test's conditions must hold before it counts: two time constants of its
     /// filter.
     pub phase_loss_arm_samples: u32,
@@ -92,10 +98,14 @@ impl MonitorConfig {
                 (1.5 * m * m) as u32
             },
             phase_loss_speed: pu_from_f64(
-                1.0 / (ts2 * libm::ldexp(1.0, pole2(10e-3)? as i32)) / omega_b,
+                0.5 / (ts2 * libm::ldexp(1.0, pole2(5e-3)? as i32)) / omega_b,
             ),
-            phase_loss_samples: libm::ceil(2e-3 / ts2) as u32,
-            phase_loss_arm_samples: 2 << pole2(10e-3)?,
+            // Σ ω_pu ω_b (2 T_s) = π/2, in bits of Pu.
+            phase_loss_turn: libm::ceil(
+                core::f64::consts::FRAC_PI_2 / (omega_b * ts2) * (1u64 << 24) as f64,
+            ) as u64,
+            phase_loss_arm_samples: 2 << pole2(5e-3)?,
+            ms5: pole2(5e-3)?,
             stall_samples: libm::ceil(0.15 / ts2) as u32,
             stall_current: pu_from_f64(0.9 * current_limit_pu),
             // The speed step over 2 T_s.
@@ -114,8 +124,9 @@ pub(crate) struct Monitor {
     same: [u32; 3],
     /// Filtered `i_x²` of each phase (Q8.12 squares, see [`phase_power`]).
     power: [u32; 3],
-    /// Samples each phase has been below 3/64 of the total power.
-    weak: [u32; 3],
+    /// Rotation (Σ of the speed's bits) through which each phase has been below 3/64 of the
+    /// total power.
+    weak: [u64; 3],
     /// Samples the phase-loss test's conditions have held.
     armed: u32,
     /// This sample is odd (stall and loss of lock) rather than even (phase loss).
@@ -203,7 +214,7 @@ impl Monitor {
         for (p, x) in self.power.iter_mut().zip(ph) {
             let sq = phase_power(x);
             // Both ≤ 2³⁰: the difference fits an i32, the filtered value stays in [0, 2³⁰].
-            *p = p.wrapping_add_signed((sq.wrapping_sub(*p) as i32) >> c.ms10);
+            *p = p.wrapping_add_signed((sq.wrapping_sub(*p) as i32) >> c.ms5);
             total += *p; // ≤ 3·2³⁰
         }
         // Armed once the conditions have held for two time constants: a current vector just
@@ -216,13 +227,14 @@ impl Monitor {
         };
         let armed = self.armed > c.phase_loss_arm_samples;
         let low = (total >> 5) + (total >> 6);
+        let turn = speed.to_bits().unsigned_abs() as u64;
         for (k, (p, weak)) in self.power.iter().zip(self.weak.iter_mut()).enumerate() {
             *weak = if armed && *p < low {
-                weak.saturating_add(1)
+                weak.saturating_add(turn)
             } else {
                 0
             };
-            if *weak > c.phase_loss_samples {
+            if *weak > c.phase_loss_turn {
                 return Some(Fault::PhaseLoss(k as u8));
             }
         }
