@@ -26,6 +26,7 @@ pub fn section() -> String {
     // component -> [m4 mean, m4 max, m0 mean, m0 max]
     let mut table: BTreeMap<String, [String; 4]> = BTreeMap::new();
     let mut replay = Vec::new();
+    let mut closed = Vec::new();
     for line in text.lines() {
         let f: Vec<&str> = line.split_whitespace().collect();
         match f.as_slice() {
@@ -36,6 +37,9 @@ pub fn section() -> String {
                 e[col + 1] = max.trim_start_matches("insn_max=").to_owned();
             }
             ["PIL", cpu, "replay", exact, steps] => replay.push(format!("{cpu}: {exact}, {steps}")),
+            ["PIL", cpu, "closed_loop", exact, steps] => {
+                closed.push(format!("{cpu}: {exact}, {steps}"))
+            }
             _ => {}
         }
     }
@@ -47,6 +51,14 @@ pub fn section() -> String {
         ));
     }
     s.push_str(&format!("\nReplay: {}.\n\n", replay.join("; ")));
+    if !closed.is_empty() {
+        s.push_str(&format!(
+            "Closed loop on the target (the drive and the plant, motor B from rest, 0.1 s; \
+             state, estimate, duty and the plant's `f64` state compared with the host's run): \
+             {}.\n\n",
+            closed.join("; ")
+        ));
+    }
     if let Some(v) = table.get("drive_step") {
         let over = |x: &str, budget: u32| {
             x.parse::<u32>().map_or("?".to_owned(), |n| {
