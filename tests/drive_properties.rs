@@ -79,26 +79,42 @@ proptest! {
         }
     }
 
-    /// Plausible sensor words (currents within ±1.5 pu, the bus near nominal) keep a drive
-    /// without a fault out of every state but the expected ones, and its estimate bounded.
+    /// Plausible sensor words (currents within ±1.5 pu summing to zero, the bus near nominal)
+    /// with every estimator and start-up: the drive switches only in a running state, faults
+    /// only with a name the plausible words can cause, and keeps its estimate bounded, and
+    /// (the words being what a sensor could read) it runs through most of them without a
+    /// protection trip on the raw words.
     #[test]
     fn plausible_words_keep_states_bounded(
         words in prop::collection::vec((-(3i32 << 23)..(3 << 23), -(3i32 << 23)..(3 << 23), (28i32 << 20)..(30 << 20)), 1..600),
         speed in -(1i32 << 23)..(1 << 23),
+        which in 0usize..4,
+        start in 0usize..3,
     ) {
-        let mut d = drive(1.0, EstimatorKind::MrasCurrent, StartupMode::Known(Angle::ZERO)).unwrap();
+        let kinds = [EstimatorKind::MrasCurrent, EstimatorKind::Nlo, EstimatorKind::Ao, EstimatorKind::MrasEmf];
+        let startup = [StartupMode::Known(Angle::ZERO), StartupMode::Ipd, StartupMode::Align][start];
+        let mut d = drive(1.0, kinds[which], startup).unwrap();
         d.set_speed_ref(Pu::from_bits(speed));
         d.start();
         for (a, b, v) in words {
             let out = d.step(&DriveInput {
-                i_abc: Abc { a: Pu::from_bits(a), b: Pu::from_bits(b), c: Pu::from_bits(-(a / 2) - (b / 2)) },
+                // A balanced set: c = −a − b (|a + b| < 3 pu, within range).
+                i_abc: Abc { a: Pu::from_bits(a), b: Pu::from_bits(b), c: Pu::from_bits(-a - b) },
                 vdc: Pu::from_bits(v),
             });
             if out.pwm_on {
                 prop_assert!(matches!(d.state(), DriveState::Run | DriveState::OpenLoop | DriveState::Ipd | DriveState::Align));
             }
-            // The estimator clamps its speed to ±4 pu.
-            prop_assert!(d.telemetry().estimate.omega.abs() <= Pu::from_num(4));
+            if let DriveState::Fault(f) = d.state() {
+                // Not the sensor or bus checks: the words are a balanced set on a good bus.
+                prop_assert!(
+                    !matches!(f.name(), "current_sensor" | "bus_undervoltage" | "bus_overvoltage"),
+                    "{}", f.name()
+                );
+                prop_assert!(!out.pwm_on);
+            }
+            // The estimators clamp their speed (±4 pu for the MRAS, the EMF range for the rest).
+            prop_assert!(d.telemetry().estimate.omega.abs() <= Pu::from_num(64));
         }
     }
 }
