@@ -3,7 +3,7 @@
 //! as is, held over the sample), true angle and speed.
 
 use pmsm_core::control::current::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput};
-use pmsm_core::control::pi::{FastPi, FastPiConfig, Limits, Pi, PiConfig};
+use pmsm_core::control::pi::{Pi, PiConfig};
 use pmsm_core::control::speed::{SpeedConfig, SpeedController, SpeedDesign};
 use pmsm_core::frames::Dq;
 use pmsm_core::num::{Pu, pu_from_f64};
@@ -19,40 +19,6 @@ const LSB: f64 = 1.0 / (1u64 << 24) as f64;
 
 fn base_b() -> PerUnit {
     PerUnit::new(&motor_b(), &inverter_b(), FS_HZ).unwrap()
-}
-
-/// Fixed-point PI against the f64 PI on random gains, limits, feed-forward and error
-/// sequences (with `hold` toggling): outputs within 1 LSB (measured: 0.5 LSB, the final
-/// rounding).
-#[test]
-fn pi_matches_f64_within_one_lsb() {
-    let mut rng = SplitMix(0x5eed);
-    let mut worst: f64 = 0.0;
-    for _case in 0..300 {
-        let kp = 10f64.powf(rng.uniform(-3.0, 1.5));
-        let ki_ts = 10f64.powf(rng.uniform(-6.0, -0.5));
-        let cfg = PiConfig::new(kp, ki_ts, ["kp", "ki"]).unwrap();
-        let mut fixed = Pi::new(cfg);
-        let mut reference = PiRef {
-            kp: cfg.kp(),
-            ki_ts: cfg.ki_ts(),
-            integ: 0.0,
-        };
-        let lim = rng.uniform(0.05, 4.0);
-        for _ in 0..500 {
-            let e = pu_from_f64(rng.uniform(-0.5, 0.5) * lim);
-            let ff = pu_from_f64(rng.uniform(-0.5, 0.5) * lim);
-            let lo = pu_from_f64(-lim * rng.uniform(0.5, 1.0));
-            let hi = pu_from_f64(lim * rng.uniform(0.5, 1.0));
-            let hold = rng.uniform(0.0, 1.0) < 0.1;
-            let out = fixed.step(e, ff, Limits { lo, hi }, hold);
-            let (u, sat) = reference.step(to_f64(e), to_f64(ff), to_f64(lo), to_f64(hi), hold);
-            worst = worst.max((to_f64(out.u) - u).abs() / LSB);
-            assert_eq!(out.saturated, sat);
-        }
-    }
-    println!("PI fixed vs f64: worst {worst} LSB");
-    assert!(worst <= 1.0, "worst {worst} LSB");
 }
 
 /// [`PiRef`] with back-calculation and the gain `k_t` given (as stored by the fixed point,
@@ -85,7 +51,7 @@ impl BackCalcRef {
     }
 }
 
-/// The current loops' fixed-point PI ([`FastPi`]: `Coef` gains, Q8.56 integrator, symmetric
+/// The current loops' fixed-point PI ([`Pi`]: `Coef` gains, Q8.56 integrator, symmetric
 /// limits) against the f64 PI on random gains, limits, feed-forward and error sequences (with
 /// `hold` toggling and steps deep into saturation). Outputs within `1 + 2 k_t` LSB: two
 /// roundings of ½ LSB (the proportional product and the integrator), which the
@@ -94,7 +60,7 @@ impl BackCalcRef {
 /// flag equals the f64 one except where the f64 output before the clamp is within 2 LSB of
 /// a limit (the fixed-point one is rounded; measured: none).
 #[test]
-fn fast_pi_matches_f64_within_its_bound() {
+fn pi_matches_f64_within_its_bound() {
     let mut rng = SplitMix(0xfa57);
     let (mut worst, mut worst_rel, mut worst_current, mut worst_i): (f64, f64, f64, f64) =
         (0.0, 0.0, 0.0, 0.0);
@@ -102,8 +68,8 @@ fn fast_pi_matches_f64_within_its_bound() {
     for _case in 0..300 {
         let kp = 10f64.powf(rng.uniform(-2.5, 1.5));
         let ki_ts = 10f64.powf(rng.uniform(-6.0, -0.5));
-        let cfg = FastPiConfig::new(kp, ki_ts, ["kp", "ki"], [1.0, 1.0]).unwrap();
-        let mut fixed = FastPi::new(cfg);
+        let cfg = PiConfig::new(kp, ki_ts, ["kp", "ki"], [1.0, 1.0]).unwrap();
+        let mut fixed = Pi::new(cfg);
         let mut reference = BackCalcRef {
             kp: cfg.kp(),
             ki_ts: cfg.ki_ts(),
@@ -159,7 +125,7 @@ fn fast_pi_matches_f64_within_its_bound() {
         }
     }
     println!(
-        "FastPi fixed vs f64: worst {worst} LSB ({worst_current} LSB for k_t ≤ 0.05, \
+        "Pi fixed vs f64: worst {worst} LSB ({worst_current} LSB for k_t ≤ 0.05, \
          {worst_rel} of 1 + 2 k_t; integrator {worst_i} LSB), {flag_edges} flag differences \
          on a limit's edge, {saturated_steps} saturated steps, {edges} edge steps skipped"
     );

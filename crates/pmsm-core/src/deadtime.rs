@@ -251,12 +251,12 @@ impl DeadTimeConfig {
     /// `V_dead/√3` taken from `cache` when `vdc` is the reading they were computed for.
     pub fn error_vector_abc_cached(&self, i: Abc, vdc: Pu, cache: &mut DeadTimeBus) -> AlphaBeta {
         let bits = vdc.to_bits();
-        if bits != cache.vdc || !cache.valid {
+        // The empty cache (reading 0) holds what a reading of 0 gives: V_dead = 0.
+        if bits != cache.vdc {
             let v = self.v_dead(vdc).to_bits();
             // V_dead/3 and V_dead/√3 in Q8.26 (the bits of 4/3 and 4/√3 times V_dead).
             *cache = DeadTimeBus {
                 vdc: bits,
-                valid: true,
                 third: round_shift_sat(wmul(v, FOUR_THIRDS_Q30), 30),
                 inv_sqrt3: round_shift_sat(wmul(v, FOUR_INV_SQRT3_Q29), 29),
             };
@@ -302,7 +302,6 @@ impl DeadTimeConfig {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DeadTimeBus {
     vdc: i32,
-    valid: bool,
     /// `V_dead/3`, Q8.26.
     third: i32,
     /// `V_dead/√3`, Q8.26.

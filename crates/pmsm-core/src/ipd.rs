@@ -68,14 +68,13 @@
 //! # Formats
 //!
 //! Currents and voltages [`Pu`] Q8.24; angles [`Angle`]; duties from [`SvpwmConfig`] (Q2.30).
-//! The arithmetic is a CORDIC `atan2` and comparisons scaled by [`WideGain`]s: no division.
+//! The arithmetic is a CORDIC `atan2` and comparisons scaled by [`Gain`]s: no division.
 
 use crate::angle::{Angle, SinCos};
-use crate::control::WideGain;
 use crate::cordic::polar;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, inverse_clarke};
-use crate::num::{Pu, mul_unit, pu_from_f64};
+use crate::num::{Gain, Pu, mul_unit, pu_from_f64};
 use crate::params::{MotorParams, ParamError, ParamReason, in_range};
 use crate::svpwm::{Duties, SvpwmConfig};
 use crate::units::PerUnit;
@@ -134,9 +133,9 @@ pub struct IpdConfig {
     /// Peak below which a short pulse is "no current" (a quarter of the design).
     i_short_min: Pu,
     /// `3 min_saliency / 2`: fault when `|(X, Y)| < this · I_0`, with `I_0` the sum/3.
-    saliency_k: WideGain,
+    saliency_k: Gain,
     /// `min_polarity`: fault when `|I_4 − I_5| < this · (I_4 + I_5)/2`.
-    polarity_k: WideGain,
+    polarity_k: Gain,
     /// Turn the saliency angle by π/2 (`L_d > L_q`).
     inverse_saliency: bool,
     svpwm: SvpwmConfig,
@@ -212,7 +211,7 @@ impl IpdConfig {
         let t_l = rise_time("ipd.long_current_pu", motor.ld_h, r, i_l, v)?;
         let tau = motor.ld_h.max(motor.lq_h) / r;
         let gain = |key, value: f64| {
-            WideGain::new(value).ok_or(ConfigError::Gain {
+            Gain::new(value).ok_or(ConfigError::Gain {
                 key,
                 value,
                 min: 1e-4,

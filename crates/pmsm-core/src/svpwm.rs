@@ -164,7 +164,8 @@ impl BusReciprocal {
     #[inline]
     fn get(&mut self, vdc: Pu, m: &SvpwmConfig) -> Self {
         let bits = vdc.to_bits();
-        if bits != self.vdc || self.v_max == Pu::ZERO {
+        // The empty cache's reading, 0, is below any bus the modulator passes here.
+        if bits != self.vdc {
             *self = Self {
                 vdc: bits,
                 recip: Reciprocal::of(bits),

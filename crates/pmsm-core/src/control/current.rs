@@ -1,6 +1,6 @@
 //! dq current controllers of seed 001 (§1, Fig. 5; equations.md §4.4).
 //!
-//! Two PI controllers ([`super::pi::FastPi`]) in the rotor frame, `i_d* = 0` by default (seed 001 §1), with the
+//! Two PI controllers ([`super::pi::Pi`]) in the rotor frame, `i_d* = 0` by default (seed 001 §1), with the
 //! optional decoupling feed-forward of the dq model (seed 001 eq. 3–4, equations.md §2.2):
 //!
 //! ```text
@@ -33,7 +33,7 @@
 //! The root is exact ([`circle_room`], `⌊√·⌋` to the LSB, a fixed ~60 instructions on a
 //! Cortex-M4) and is taken only when the q axis comes near the circle: the q PI first steps
 //! with the inner bound `V_max − |v_d|` (`(V_max − |v_d|)² ≤ V_max² − v_d²`), and only if a
-//! limit took part (`FastPi::step_inside`) steps again from the saved state with the root.
+//! limit took part (`Pi::eval`) steps again from the saved state with the root.
 //!
 //! # Formats
 //!
@@ -42,7 +42,7 @@
 //! | currents, voltages, `ω`, `v_DC`, `ψ` | [`Pu`] Q8.24 | ±128 |
 //! | `L_d`, `L_q` (per unit, `= X/Z_b` at base speed) | [`Coef<24>`](Coef) | [2⁻⁸, 64] (envelope), resolution 6e−8 |
 //! | `m/√3` | [`Coef<31>`](Coef) | (0, 0.578] |
-//! | `K_p`, `K_i T_s` | [`FastPiConfig`] | `K_p` [2⁻⁹, 2¹⁴) pu, `K_i T_s` 0 or [2⁻²², 1) pu |
+//! | `K_p`, `K_i T_s` | [`PiConfig`] | `K_p` [2⁻⁹, 2¹⁴) pu, `K_i T_s` 0 or [2⁻²², 1) pu |
 //! | `V_max` | [`Pu`] | ≤ 1.16 · `m` at nominal bus |
 //!
 //! `K_p` up to 2¹⁴ covers the deadbeat gain `L/T_s` of every motor of the per-unit envelope;
@@ -50,7 +50,7 @@
 //! `0.05 R/Z_b`).
 
 use super::gain_in;
-use super::pi::{FastPi, FastPiConfig, coef_in};
+use super::pi::{Pi, PiConfig, coef_in};
 use super::{circle_room, frac_mul};
 use crate::error::ConfigError;
 use crate::frames::Dq;
@@ -93,8 +93,8 @@ pub const DEFAULT_BANDWIDTH_TS: f64 = 0.05;
 /// Configuration of the [`CurrentController`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentConfig {
-    pi_d: FastPiConfig,
-    pi_q: FastPiConfig,
+    pi_d: PiConfig,
+    pi_q: PiConfig,
     /// `L_d` per unit.
     ld: Coef<24>,
     /// `−L_q` per unit (negated: `ff_d = −ω L_q i_q` without a negation per sample).
@@ -148,13 +148,13 @@ impl CurrentConfig {
         gain_in("current.kp_q", kp_q, 1e-12, motor.lq_h / ts)?;
         gain_in("current.ki_d", ki_d, 0.0, kp_d / ts)?;
         gain_in("current.ki_q", ki_q, 0.0, kp_q / ts)?;
-        let pi_d = FastPiConfig::new(
+        let pi_d = PiConfig::new(
             kp_d / z_b,
             ki_d * ts / z_b,
             ["current.kp_d", "current.ki_d"],
             [z_b, z_b / ts],
         )?;
-        let pi_q = FastPiConfig::new(
+        let pi_q = PiConfig::new(
             kp_q / z_b,
             ki_q * ts / z_b,
             ["current.kp_q", "current.ki_q"],
@@ -217,16 +217,16 @@ pub struct CurrentOutput {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentController {
     config: CurrentConfig,
-    pi_d: FastPi,
-    pi_q: FastPi,
+    pi_d: Pi,
+    pi_q: Pi,
 }
 
 impl CurrentController {
     /// Controllers with zero integral state.
     pub fn new(config: CurrentConfig) -> Self {
         Self {
-            pi_d: FastPi::new(config.pi_d),
-            pi_q: FastPi::new(config.pi_q),
+            pi_d: Pi::new(config.pi_d),
+            pi_q: Pi::new(config.pi_q),
             config,
         }
     }
@@ -266,7 +266,7 @@ impl CurrentController {
         // The q limit is the room left on the circle, √(V_max² − v_d²) (a square root). It
         // is at least V_max − |v_d| (as (V_max − |v_d|)² ≤ V_max² − v_d²), and when the q PI
         // stays strictly inside that bound its step is the same for the exact limit (see
-        // `FastPi::step_inside`): the root is taken only when the q axis comes near the circle.
+        // `Pi::eval`): the root is taken only when the q axis comes near the circle.
         // |v_d| ≤ v_max: the difference is in [0, v_max], no saturation needed.
         let lower = Pu::from_bits(v_max.to_bits() - d.u.to_bits().wrapping_abs());
         let (mut q, inside, mut integ) = self.pi_q.eval(e_q, ff_q, lower, input.hold);

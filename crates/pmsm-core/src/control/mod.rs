@@ -7,164 +7,20 @@
 //! and reports it. Signals are per unit ([`Pu`], Q8.24) of [`PerUnit`](crate::units::PerUnit).
 //!
 //! The current and speed loops run on compile-time binary points ([`Coef`](crate::num::Coef)
-//! gains, integrators whose LSB is the exact product's: [`pi::FastPi`], [`speed`]) and
-//! exact square roots in a fixed number of steps ([`isqrt_fast`], [`circle_room`]), a few
-//! tens of instructions each on a Cortex-M4. This module also keeps [`WideGain`], a
-//! configuration constant (30 significant bits at any magnitude, variable shift) whose
-//! product keeps 24 bits below the [`Pu`] LSB, for the general [`pi::Pi`] of the
-//! current-model MRAS and the initial position detection and dead-time compensation.
+//! gains, integrators whose LSB is the exact product's: [`pi::Pi`], [`speed`]) and exact
+//! square roots in a fixed number of steps ([`isqrt_fast`], [`circle_room`]), a few tens of
+//! instructions each on a Cortex-M4.
 
 pub mod current;
 pub mod pi;
 pub mod speed;
 
 pub use current::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput};
-pub use pi::{Limits, Pi, PiConfig, PiOutput};
+pub use pi::{Pi, PiConfig, PiOutput};
 pub use speed::{SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};
 
 use crate::error::ConfigError;
-use crate::num::{PU_FRAC, Pu, round_shift_sat, sat_i32, wmul};
-
-/// Fractional bits of the wide accumulators (integrators): Q16.48 in `i64`, range ±32768,
-/// LSB 2⁻⁴⁸ ≈ 3.6e−15, i.e. 2²⁴ steps per LSB of [`Pu`].
-pub const WIDE_FRAC: u32 = 48;
-
-/// Extra fractional bits of a wide value over [`Pu`].
-const EXTRA: u32 = WIDE_FRAC - PU_FRAC;
-
-/// A constant factor `mantissa · 2^−shift` (30–31 significant bits at any magnitude, like
-/// [`crate::num::Gain`]) whose product with a [`Pu`] signal is returned in Q16.48, so that an
-/// integrator can accumulate increments far below one LSB of [`Pu`] without bias.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct WideGain {
-    mantissa: i32,
-    shift: u32,
-}
-
-impl WideGain {
-    /// Zero.
-    pub const ZERO: Self = Self {
-        mantissa: 0,
-        shift: 30,
-    };
-
-    /// The factor closest to `value`, or `None` if it is not finite or `|value|` is outside
-    /// [2⁻⁴⁰, 2²⁰] (zero is accepted).
-    pub fn new(value: f64) -> Option<Self> {
-        if !value.is_finite() {
-            return None;
-        }
-        if value == 0.0 {
-            return Some(Self::ZERO);
-        }
-        let mag = libm::fabs(value);
-        if !(libm::ldexp(1.0, -40)..=libm::ldexp(1.0, 20)).contains(&mag) {
-            return None;
-        }
-        // mag in [2^e, 2^(e+1)): mantissa in [2^29, 2^30] after the shift.
-        let e = libm::ilogb(mag);
-        let shift = (29 - e) as u32; // 9..=69 for the accepted range
-        let m = libm::round(libm::ldexp(value, shift as i32));
-        if m > i32::MAX as f64 || m < i32::MIN as f64 {
-            return None;
-        }
-        Some(Self {
-            mantissa: m as i32,
-            shift,
-        })
-    }
-
-    /// The factor as a float (exact).
-    pub fn to_f64(self) -> f64 {
-        libm::ldexp(self.mantissa as f64, -(self.shift as i32))
-    }
-
-    /// `factor · x` in Q16.48 (rounded to nearest, saturated to ±2⁶² so that a few such terms
-    /// can be added without overflow).
-    #[inline]
-    pub fn apply_wide(self, x: Pu) -> i64 {
-        // |x · m| < 2^62. Its value is prod · 2^−(shift + 24), so in Q.48 it is
-        // prod · 2^(24 − shift): a rounding right shift or a saturating left shift.
-        let prod = wmul(x.to_bits(), self.mantissa);
-        let out = if self.shift > EXTRA {
-            // 1 ≤ s ≤ 45 for the accepted range; round half up like `round_shift_sat`.
-            let s = self.shift - EXTRA;
-            (prod >> s) + ((prod >> (s - 1)) & 1)
-        } else {
-            let s = EXTRA - self.shift;
-            sat_shl(prod, s)
-        };
-        out.clamp(-WIDE_LIMIT, WIDE_LIMIT)
-    }
-
-    /// `factor · x` for a wide value `x` in any format, in the same format (rounded to
-    /// nearest, saturated to ±2⁶²); the product is formed in `i128`.
-    #[inline]
-    pub fn apply_i64(self, x: i64) -> i64 {
-        let prod = x as i128 * self.mantissa as i128;
-        // shift is 9..=69: a rounding right shift of a value below 2^94.
-        let s = self.shift;
-        let r = (prod >> s) + ((prod >> (s - 1)) & 1);
-        r.clamp(-(WIDE_LIMIT as i128), WIDE_LIMIT as i128) as i64
-    }
-
-    /// `factor · u` for a [`Unit`](crate::num::Unit) (Q2.30) factor `u`, rounded to [`Pu`]
-    /// (one rounding of the exact product), saturated.
-    #[inline]
-    pub fn apply_unit(self, u: crate::num::Unit) -> Pu {
-        // Value u · 2^−30 · m · 2^−shift; in Q8.24 bits prod · 2^−(shift + 6).
-        let prod = wmul(u.to_bits(), self.mantissa);
-        let s = self.shift + (crate::num::UNIT_FRAC - PU_FRAC);
-        if s > 62 {
-            Pu::ZERO
-        } else {
-            Pu::from_bits(round_shift_sat(prod, s))
-        }
-    }
-
-    /// `factor · x` rounded to [`Pu`], saturated: one rounding of the exact product (not
-    /// through Q16.48), within half an LSB.
-    #[inline]
-    pub fn apply(self, x: Pu) -> Pu {
-        // The product's value is prod · 2^−(shift + 24): in Q8.24 bits, prod · 2^−shift.
-        // |prod| ≤ 2^61 (|mantissa| ≤ 2^30), so beyond a shift of 62 it rounds to zero.
-        let prod = wmul(x.to_bits(), self.mantissa);
-        if self.shift > 62 {
-            Pu::ZERO
-        } else {
-            Pu::from_bits(round_shift_sat(prod, self.shift))
-        }
-    }
-}
-
-/// Largest magnitude of the wide values (±2⁶²), so that two can be added without overflow.
-pub const WIDE_LIMIT: i64 = 1 << 62;
-
-/// `x << s`, saturated to ±2⁶².
-#[inline]
-fn sat_shl(x: i64, s: u32) -> i64 {
-    if x == 0 {
-        0
-    } else if s >= 62 || x.unsigned_abs().leading_zeros() <= s + 1 {
-        if x > 0 { WIDE_LIMIT } else { -WIDE_LIMIT }
-    } else {
-        x << s
-    }
-}
-
-/// A [`Pu`] value in Q16.48 (exact).
-#[inline(always)]
-pub const fn pu_to_wide(x: Pu) -> i64 {
-    (x.to_bits() as i64) << EXTRA
-}
-
-/// A Q16.48 value rounded to nearest [`Pu`], saturated.
-#[inline(always)]
-pub fn wide_to_pu(x: i64) -> Pu {
-    // (x >> 23) then round: same as round_shift_sat but written out to keep it const-free.
-    let r = (x >> EXTRA) + ((x >> (EXTRA - 1)) & 1);
-    Pu::from_bits(sat_i32(r))
-}
+use crate::num::{Pu, sat_i32, wmul};
 
 /// `⌊√x⌋` of a `u64`, bit by bit (32 iterations of shifts and compares, no division).
 pub fn isqrt_u64(x: u64) -> u32 {
@@ -264,17 +120,6 @@ pub(crate) fn frac_mul(c: crate::num::Coef<31>, x: i32) -> i32 {
     ((crate::num::wmul_inline(x, c.bits()) + (1 << 30)) >> 31) as i32
 }
 
-/// A gain as a [`WideGain`], or the typed error naming its key; `max` is the largest value the
-/// caller accepts (for the error message), already checked by the caller.
-pub(crate) fn wide_gain(key: &'static str, value: f64, max: f64) -> Result<WideGain, ConfigError> {
-    WideGain::new(value).ok_or(ConfigError::Gain {
-        key,
-        value,
-        min: 0.0,
-        max,
-    })
-}
-
 /// Checks `min ≤ value ≤ max` (finite) for a gain named `key`.
 pub(crate) fn gain_in(
     key: &'static str,
@@ -297,7 +142,6 @@ pub(crate) fn gain_in(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::units::to_f64;
     use proptest::prelude::*;
 
     #[test]
@@ -355,29 +199,6 @@ mod tests {
         }
 
         /// Within half an LSB of Q16.48 plus the gain's 2⁻²⁹ relative rounding.
-        #[test]
-        fn wide_gain_against_f64(v in -1e5f64..1e5, x in any::<i32>()) {
-            prop_assume!(v.abs() > 1e-12);
-            let g = WideGain::new(v).unwrap();
-            prop_assert!(((g.to_f64() - v) / v).abs() <= 1.0 / (1u64 << 29) as f64);
-            let exact = to_f64(Pu::from_bits(x)) * g.to_f64() * (1u64 << WIDE_FRAC) as f64;
-            let got = g.apply_wide(Pu::from_bits(x)) as f64;
-            if exact.abs() < WIDE_LIMIT as f64 {
-                prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 1e-15);
-            } else {
-                prop_assert_eq!(g.apply_wide(Pu::from_bits(x)).abs(), WIDE_LIMIT);
-            }
-        }
-
-        #[test]
-        fn wide_gain_i64_against_f64(v in 0.0f64..1.0, x in -(1i64 << 58)..(1i64 << 58)) {
-            prop_assume!(v > 1e-9);
-            let g = WideGain::new(v).unwrap();
-            let exact = x as f64 * g.to_f64();
-            let got = g.apply_i64(x) as f64;
-            prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 1e-15);
-        }
-
         #[test]
         fn isqrt_fast_is_floor_sqrt(x in 0u64..1 << 62, sh in 0u32..62) {
             for v in [x, x >> sh, (x >> sh) | 1 << 61] {

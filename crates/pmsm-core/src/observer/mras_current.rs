@@ -236,8 +236,6 @@ pub struct MrasCurrentConfig {
     psi_ld: Pu,
     /// `ξ' = (L_d/ψ) ξ̃`, for [`MrasCurrent::xi`] only.
     xi_scale: Coef<24>,
-    /// `ψ` per unit (EMF of the estimate; 1 with the bases of [`PerUnit`]).
-    psi: Pu,
     /// Angle step per unit of speed: `ω_b T_s 2³³/(2π)`; times `2^TURN_SHIFT` gives 2⁻⁶⁴ turns.
     turn_per_speed: i32,
     /// Speed integrator (Q9.55 increments): `K_i T_s`, `T_s p K_T I_b/(J ω_b)`, `T_s B/J`.
@@ -406,7 +404,6 @@ impl MrasCurrentConfig {
             rho2: coef("lq_h", rho * rho, 0.0, 16.0)?,
             psi_ld: pu_in("ld_h", psi_d, 0.0, OFFSET_MAX)?,
             xi_scale: coef("ld_h", ld / psi, 0.0, Coef::<24>::limit())?,
-            psi: pu_from_f64(psi),
             turn_per_speed,
             ki_ts,
             accel: coef("j_kg_m2", accel, 0.0, MECH_MAX)?,
