@@ -17,6 +17,7 @@
 //! Timing: the currents are sampled at `t_k`, the duties returned apply over `[t_k, t_{k+1})`
 //! (the computation is assumed to finish before the first switching edge of the period).
 
+mod codes;
 mod config;
 mod monitor;
 mod startup;
