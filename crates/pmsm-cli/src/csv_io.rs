@@ -59,33 +59,8 @@ pub fn read_from(
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .from_reader(input);
-    let header: Vec<String> = reader
-        .headers()
-        .with_context(|| format!("{shown}: cannot read the header row"))?
-        .iter()
-        .map(str::to_owned)
-        .collect();
-    if header.iter().all(String::is_empty) {
-        bail!(
-            "{shown}: empty file (expected a header row with {})",
-            required.join(", ")
-        );
-    }
-    let mut wanted: Vec<(String, usize)> = Vec::new();
-    for name in required {
-        match header.iter().position(|h| h == name) {
-            Some(i) => wanted.push(((*name).to_owned(), i)),
-            None => bail!(
-                "{shown}: missing column `{name}` (the header has: {})",
-                header.join(", ")
-            ),
-        }
-    }
-    for name in optional {
-        if let Some(i) = header.iter().position(|h| h == name) {
-            wanted.push(((*name).to_owned(), i));
-        }
-    }
+    let header = header_row(&mut reader, path, required)?;
+    let wanted = select_columns(&header, path, required, optional)?;
     let mut columns: Vec<Vec<f64>> = vec![Vec::new(); wanted.len()];
     for (row, record) in reader.records().enumerate() {
         let row = row + 1;
@@ -102,16 +77,11 @@ pub fn read_from(
         }
         for ((name, index), column) in wanted.iter().zip(columns.iter_mut()) {
             let cell = record.get(*index).unwrap_or("");
-            let value: f64 = cell.parse().map_err(|_| {
+            let value = finite_number(cell).map_err(|what| {
                 anyhow::anyhow!(
-                    "{shown}: row {row} (line {line}), column `{name}`: `{cell}` is not a number"
+                    "{shown}: row {row} (line {line}), column `{name}`: `{cell}` is not {what}"
                 )
             })?;
-            if !value.is_finite() {
-                bail!(
-                    "{shown}: row {row} (line {line}), column `{name}`: `{cell}` is not a finite number"
-                );
-            }
             column.push(value);
         }
     }
@@ -124,6 +94,65 @@ pub fn read_from(
         bail!("{shown}: no data rows after the header");
     }
     Ok(table)
+}
+
+/// The column names; an empty file is an error that lists the `required` columns.
+fn header_row<R: std::io::Read>(
+    reader: &mut csv::Reader<R>,
+    path: &Path,
+    required: &[&str],
+) -> Result<Vec<String>> {
+    let shown = path.display();
+    let header: Vec<String> = reader
+        .headers()
+        .with_context(|| format!("{shown}: cannot read the header row"))?
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    if header.iter().all(String::is_empty) {
+        bail!(
+            "{shown}: empty file (expected a header row with {})",
+            required.join(", ")
+        );
+    }
+    Ok(header)
+}
+
+/// Each wanted column's name and position in `header`: every `required` one, then the
+/// `optional` ones present.
+fn select_columns(
+    header: &[String],
+    path: &Path,
+    required: &[&str],
+    optional: &[&str],
+) -> Result<Vec<(String, usize)>> {
+    let mut wanted: Vec<(String, usize)> = Vec::new();
+    for name in required {
+        match header.iter().position(|h| h == name) {
+            Some(i) => wanted.push(((*name).to_owned(), i)),
+            None => bail!(
+                "{}: missing column `{name}` (the header has: {})",
+                path.display(),
+                header.join(", ")
+            ),
+        }
+    }
+    for name in optional {
+        if let Some(i) = header.iter().position(|h| h == name) {
+            wanted.push(((*name).to_owned(), i));
+        }
+    }
+    Ok(wanted)
+}
+
+/// A cell as a finite number, or what it fails to be.
+fn finite_number(cell: &str) -> Result<f64, &'static str> {
+    let value: f64 = cell.parse().map_err(|_| "a number")?;
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err("a finite number")
+    }
 }
 
 /// Checks that a time column is strictly increasing; returns its rows.

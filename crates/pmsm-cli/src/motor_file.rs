@@ -68,6 +68,38 @@ struct RawSaturation {
     psi_s_wb: Option<f64>,
 }
 
+impl RawSaturation {
+    /// The `[saturation]` table's model for the motor `params`.
+    fn into_saturation(self, params: &MotorParams) -> Result<Saturation, ParamError> {
+        use pmsm_core::params::ParamReason;
+        match self.model.as_str() {
+            "none" => {
+                if self.psi_s_wb.is_some() {
+                    return Err(ParamError {
+                        key: "saturation.psi_s_wb",
+                        reason: ParamReason::Inconsistent("model = \"none\""),
+                    });
+                }
+                Ok(Saturation::Linear)
+            }
+            "tanh" => Ok(match self.psi_s_wb {
+                Some(psi_s_wb) => Saturation::Tanh { psi_s_wb },
+                // The default strength of the plant, also for a surface motor.
+                None => Saturation::Tanh {
+                    psi_s_wb: params.flux_wb
+                        + pmsm_plant::saturation::DEFAULT_STRENGTH
+                            * params.ld_h
+                            * Saturation::reference_current_a(params),
+                },
+            }),
+            _ => Err(ParamError {
+                key: "saturation.model",
+                reason: ParamReason::Inconsistent("the models \"tanh\" and \"none\""),
+            }),
+        }
+    }
+}
+
 /// Reads and validates a motor file.
 pub fn read(path: &Path) -> Result<Motor> {
     let text = std::fs::read_to_string(path)
@@ -118,33 +150,7 @@ impl RawMotor {
         in_range("emf_h7", self.emf_h7, 0.0, 0.5)?;
         let saturation = match self.saturation {
             None => Saturation::default_for(&params),
-            Some(s) => match s.model.as_str() {
-                "none" => {
-                    if s.psi_s_wb.is_some() {
-                        return Err(ParamError {
-                            key: "saturation.psi_s_wb",
-                            reason: ParamReason::Inconsistent("model = \"none\""),
-                        });
-                    }
-                    Saturation::Linear
-                }
-                "tanh" => match s.psi_s_wb {
-                    Some(psi_s_wb) => Saturation::Tanh { psi_s_wb },
-                    // The default strength of the plant, also for a surface motor.
-                    None => Saturation::Tanh {
-                        psi_s_wb: params.flux_wb
-                            + pmsm_plant::saturation::DEFAULT_STRENGTH
-                                * params.ld_h
-                                * Saturation::reference_current_a(&params),
-                    },
-                },
-                _ => {
-                    return Err(ParamError {
-                        key: "saturation.model",
-                        reason: ParamReason::Inconsistent("the models \"tanh\" and \"none\""),
-                    });
-                }
-            },
+            Some(s) => s.into_saturation(&params)?,
         };
         let mut model = MotorModel::new(params);
         model.saturation = saturation;

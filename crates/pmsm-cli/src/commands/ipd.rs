@@ -9,10 +9,10 @@
 use crate::{motor_file, plot};
 use anyhow::{Result, anyhow, bail};
 use pmsm_core::ipd::{Ipd, IpdConfig, IpdDesign, IpdFault};
-use pmsm_core::{AlphaBeta, InverterParams, PerUnit};
+use pmsm_core::{AlphaBeta, InverterParams, MotorParams, PerUnit};
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, Plant};
 use std::io::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `pmsm ipd`.
 #[derive(clap::Args, Debug)]
@@ -120,8 +120,23 @@ pub fn detect(
 /// Runs `pmsm ipd`.
 pub fn run(args: &Args) -> Result<()> {
     let motor = motor_file::read(&args.motor)?;
-    let m = motor.model.params;
-    let angles: Vec<f64> = match (args.theta_deg, args.sweep) {
+    let angles = angles_deg(args)?;
+    let (inverter, base, config) = build_detector(args, &motor.model.params)?;
+    let detections = detect(&motor, &inverter, &base, config, &angles)?;
+    write_csv(&args.output, &detections)?;
+    let errors: Vec<f64> = detections.iter().filter_map(Detection::error_deg).collect();
+    print_summary(args, &motor.name, &config, &detections, &errors);
+    println!("  output     {}", args.output.display());
+    if let Some(path) = &args.plot {
+        draw(path, &motor.name, &detections, &errors)?;
+        println!("  plot       {}", path.display());
+    }
+    Ok(())
+}
+
+/// The true angles of `--theta-deg` or `--sweep`, degrees.
+fn angles_deg(args: &Args) -> Result<Vec<f64>> {
+    Ok(match (args.theta_deg, args.sweep) {
         (Some(x), None) if x.is_finite() => vec![x],
         (Some(x), None) => bail!("--theta-deg: must be a finite number, not {x}"),
         (None, Some(n)) if (1..=100_000).contains(&n) => {
@@ -129,31 +144,38 @@ pub fn run(args: &Args) -> Result<()> {
         }
         (None, Some(n)) => bail!("--sweep: must be between 1 and 100000, not {n}"),
         _ => bail!("give either --theta-deg X or --sweep N"),
-    };
-    let inverter = InverterParams {
+    })
+}
+
+/// The inverter (ADC range 4 × the current base), the per-unit bases at the PWM rate and the
+/// detector's default configuration for the motor.
+fn build_detector(args: &Args, m: &MotorParams) -> Result<(InverterParams, PerUnit, IpdConfig)> {
+    let mut inverter = InverterParams {
         vdc_v: args.vdc,
         pwm_hz: args.pwm_hz,
         dead_time_s: args.dead_time_s,
         current_full_scale_a: 1.0,
     };
-    let mut inverter = inverter;
-    let base = PerUnit::new(&m, &inverter, args.pwm_hz)
+    let base = PerUnit::new(m, &inverter, args.pwm_hz)
         .map_err(|e| anyhow!("{}: {e}", args.motor.display()))?;
     inverter.current_full_scale_a = 4.0 * base.current_a;
-    let config = IpdConfig::new(&m, &base, IpdDesign::default())
+    let config = IpdConfig::new(m, &base, IpdDesign::default())
         .map_err(|e| anyhow!("{}: {e}", args.motor.display()))?;
-    let detections = detect(&motor, &inverter, &base, config, &angles)?;
+    Ok((inverter, base, config))
+}
 
-    let file = std::fs::File::create(&args.output)
-        .map_err(|e| anyhow!("{}: cannot create: {e}", args.output.display()))?;
+/// Writes one CSV row per detection (estimate and error empty for a fault).
+fn write_csv(path: &Path, detections: &[Detection]) -> Result<()> {
+    let file = std::fs::File::create(path)
+        .map_err(|e| anyhow!("{}: cannot create: {e}", path.display()))?;
     let mut w = std::io::BufWriter::new(file);
-    let werr = |e: std::io::Error| anyhow!("{}: cannot write: {e}", args.output.display());
+    let werr = |e: std::io::Error| anyhow!("{}: cannot write: {e}", path.display());
     writeln!(
         w,
         "theta_true_deg,theta_est_deg,error_deg,polarity_ok,fault"
     )
     .map_err(werr)?;
-    for d in &detections {
+    for d in detections {
         match d.result {
             Ok(est) => {
                 let err = (est - d.theta_true_deg + 180.0).rem_euclid(360.0) - 180.0;
@@ -168,17 +190,27 @@ pub fn run(args: &Args) -> Result<()> {
             Err(f) => writeln!(w, "{},,,0,{}", d.theta_true_deg, fault_name(f)).map_err(werr)?,
         }
     }
-    w.flush().map_err(werr)?;
-    let errors: Vec<f64> = detections.iter().filter_map(Detection::error_deg).collect();
+    w.flush().map_err(werr)
+}
+
+/// Prints the set-up, the largest error, the wrong polarities and the faults; `errors` are
+/// those of the detections that did not fault.
+fn print_summary(
+    args: &Args,
+    name: &str,
+    config: &IpdConfig,
+    detections: &[Detection],
+    errors: &[f64],
+) {
     let faults = detections.len() - errors.len();
     let worst = errors.iter().fold(0.0f64, |a, x| a.max(x.abs()));
     let wrong_polarity = errors.iter().filter(|e| e.abs() >= 90.0).count();
     println!(
         "pmsm ipd: {} at {} V, {} Hz, {} angle(s): pulses of {} and {} samples, {} off",
-        motor.name,
+        name,
         args.vdc,
         args.pwm_hz,
-        angles.len(),
+        detections.len(),
         config.n_short,
         config.n_long,
         config.n_off
@@ -190,31 +222,27 @@ pub fn run(args: &Args) -> Result<()> {
             .find_map(|d| d.result.err())
             .map_or(String::new(), |f| format!(" (first: {f:?})"))
     );
-    println!("  output     {}", args.output.display());
-    if let Some(path) = &args.plot {
-        let t: Vec<f64> = detections
-            .iter()
-            .filter(|d| d.result.is_ok())
-            .map(|d| d.theta_true_deg)
-            .collect();
-        plot::write_svg(
-            path,
-            &format!(
-                "pmsm ipd: {} (error against the true angle, x axis in degrees)",
-                motor.name
-            ),
-            &t,
-            &[plot::Panel {
-                title: "error (° electrical)",
-                series: vec![plot::Series {
-                    label: "detected − true",
-                    values: &errors,
-                }],
+}
+
+/// Draws the error against the true angle (faulted detections left out).
+fn draw(path: &Path, name: &str, detections: &[Detection], errors: &[f64]) -> Result<()> {
+    let t: Vec<f64> = detections
+        .iter()
+        .filter(|d| d.result.is_ok())
+        .map(|d| d.theta_true_deg)
+        .collect();
+    plot::write_svg(
+        path,
+        &format!("pmsm ipd: {name} (error against the true angle, x axis in degrees)"),
+        &t,
+        &[plot::Panel {
+            title: "error (° electrical)",
+            series: vec![plot::Series {
+                label: "detected − true",
+                values: errors,
             }],
-        )?;
-        println!("  plot       {}", path.display());
-    }
-    Ok(())
+        }],
+    )
 }
 
 /// A short name of a detector fault (CSV files).

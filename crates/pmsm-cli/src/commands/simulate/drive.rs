@@ -1,0 +1,140 @@
+//! The fixed-point drive of a scenario, from its `[inverter]` and `[control]` tables and its
+//! motor: the one place where the per-unit bases, the design and the configuration are made.
+
+use crate::scenario_file::{CompensationMode, ObserverKind, Scenario, Startup};
+use anyhow::{Result, anyhow, bail};
+use pmsm_core::deadtime::DeadTimeMode;
+use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, StartupMode};
+use pmsm_core::observer::{EstimatorKind, MrasCurrentGains};
+use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
+use std::f64::consts::TAU;
+
+/// The drive of a scenario and what the loop needs to talk to it in SI units.
+#[derive(Debug)]
+pub struct DriveSetup {
+    /// The drive, not started.
+    pub drive: Drive,
+    /// Its per-unit bases.
+    pub base: PerUnit,
+    /// The drive's model of the motor (the plant keeps the true one).
+    pub model: MotorParams,
+    /// The inverter, with the ADC full scale resolved; the plant uses the same.
+    pub inverter: InverterParams,
+    /// Control sample rate, Hz.
+    pub sample_hz: f64,
+    /// PWM periods per control sample.
+    pub pwm_per_sample: usize,
+}
+
+/// Builds the drive of `sc`: bases, default design for the motor, the scenario's overrides,
+/// configuration.
+pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
+    let shown = sc.path.display();
+    let model = drive_model(sc);
+    let (sample_hz, pwm_per_sample) = sample_rate(sc)?;
+    let mut inverter = InverterParams {
+        vdc_v: sc.inverter.vdc_v,
+        pwm_hz: sc.inverter.pwm_hz,
+        dead_time_s: sc.inverter.dead_time_s,
+        current_full_scale_a: 1.0,
+    };
+    let base = PerUnit::new(&model, &inverter, sample_hz).map_err(|e| anyhow!("{shown}: {e}"))?;
+    // The ADC range follows the current base unless the scenario sets it.
+    inverter.current_full_scale_a = sc
+        .inverter
+        .current_full_scale_a
+        .unwrap_or(4.0 * base.current_a);
+    let estimator = estimator_kind(sc.control.observer);
+    let mut design = DriveDesign::default_for(&model, &inverter, &base, estimator);
+    apply_control(&mut design, sc, &model);
+    let config = DriveConfig::new(&model, &inverter, sample_hz, design)
+        .map_err(|e| anyhow!("{shown}: {e}"))?;
+    Ok(DriveSetup {
+        drive: Drive::new(config),
+        base,
+        model,
+        inverter,
+        sample_hz,
+        pwm_per_sample,
+    })
+}
+
+/// The motor as the drive believes it to be: the scenario's, scaled by the `model_*_factor`s
+/// of `[control]`.
+fn drive_model(sc: &Scenario) -> MotorParams {
+    let c = &sc.control;
+    let mut model = sc.motor.model.params;
+    model.rs_ohm *= c.model_rs_factor.unwrap_or(1.0);
+    model.ld_h *= c.model_l_factor.unwrap_or(1.0);
+    model.lq_h *= c.model_l_factor.unwrap_or(1.0);
+    model.flux_wb *= c.model_flux_factor.unwrap_or(1.0);
+    model.kt_nm_per_a *= c.model_flux_factor.unwrap_or(1.0);
+    model
+}
+
+/// The control sample rate, Hz, and the whole number of PWM periods per sample.
+fn sample_rate(sc: &Scenario) -> Result<(f64, usize)> {
+    let pwm_hz = sc.inverter.pwm_hz;
+    let sample_hz = sc.control.sample_hz.unwrap_or(pwm_hz);
+    let ratio = pwm_hz / sample_hz;
+    if (ratio - ratio.round()).abs() > 1e-9 {
+        bail!(
+            "{}: `control.sample_hz` ({sample_hz}) must divide `inverter.pwm_hz` ({pwm_hz})",
+            sc.path.display()
+        );
+    }
+    Ok((sample_hz, ratio.round() as usize))
+}
+
+/// Sets in `design` what `[control]` and `[inverter]` give beyond the defaults.
+fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
+    let c = &sc.control;
+    design.startup = startup_mode(c.startup, sc.theta0_rad);
+    design.deadtime.mode = deadtime_mode(c.deadtime_compensation.mode());
+    design.protection.health_limit_pu = c.health_limit_pu;
+    design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
+    design.deadtime.device.v_f_v = sc.inverter.v_f_v;
+    if let Some(g) = c.observer_gain {
+        design.observer_gain_rad_s = g;
+    }
+    if let Some(hz) = c.current_bandwidth_hz {
+        design.current.bandwidth_rad_s = TAU * hz;
+    }
+    if let Some(hz) = c.speed_bandwidth_hz {
+        design.speed.bandwidth_rad_s = TAU * hz;
+    }
+    if let Some(hz) = c.mras_bandwidth_hz {
+        design.mras_current = MrasCurrentGains::design(model, TAU * hz);
+    }
+    if let Some(a) = c.current_limit_a {
+        design.speed.current_limit_a = a;
+        design.open_loop.current_a = design.open_loop.current_a.min(a);
+    }
+}
+
+fn estimator_kind(observer: ObserverKind) -> EstimatorKind {
+    match observer {
+        ObserverKind::Nlo => EstimatorKind::Nlo,
+        ObserverKind::Ao => EstimatorKind::Ao,
+        ObserverKind::MrasEmf => EstimatorKind::MrasEmf,
+        ObserverKind::MrasCurrent => EstimatorKind::MrasCurrent,
+    }
+}
+
+/// `known` takes the true initial angle of `[initial]`.
+fn startup_mode(startup: Startup, theta0_rad: f64) -> StartupMode {
+    match startup {
+        Startup::Ipd => StartupMode::Ipd,
+        Startup::Align => StartupMode::Align,
+        Startup::Known => StartupMode::Known(Angle::from_rad(theta0_rad)),
+    }
+}
+
+fn deadtime_mode(mode: CompensationMode) -> DeadTimeMode {
+    match mode {
+        CompensationMode::Off => DeadTimeMode::Off,
+        CompensationMode::Command => DeadTimeMode::Command,
+        CompensationMode::Estimator => DeadTimeMode::Estimator,
+        CompensationMode::Both => DeadTimeMode::Both,
+    }
+}

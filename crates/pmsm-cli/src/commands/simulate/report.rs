@@ -1,0 +1,148 @@
+//! The summary of a run: its phases between the breakpoints of the references, printed as a
+//! table.
+
+use super::{Row, Run, wrap};
+use crate::scenario_file::Scenario;
+use pmsm_core::drive::DriveState;
+
+/// Statistics of one phase of a run (between two breakpoints of the references).
+#[derive(Clone, Debug)]
+pub struct Phase {
+    /// Start and end, s.
+    pub span_s: (f64, f64),
+    /// Mean |speed − reference| over the last half of the phase, r/min.
+    pub speed_err_rpm: f64,
+    /// The same relative to the reference, when it is not zero.
+    pub speed_err_rel: Option<f64>,
+    /// RMS and max |angle error| while running closed loop, rad.
+    pub angle_err_rms_rad: f64,
+    /// See `angle_err_rms_rad`.
+    pub angle_err_max_rad: f64,
+    /// Largest phase current, A.
+    pub i_peak_a: f64,
+    /// Faults that occurred.
+    pub faults: Vec<&'static str>,
+}
+
+/// Splits a run at the breakpoints of its references and summarises each phase.
+pub fn phases(sc: &Scenario, rows: &[Row]) -> Vec<Phase> {
+    phase_cuts(sc)
+        .windows(2)
+        .filter_map(|w| {
+            let span: Vec<&Row> = rows
+                .iter()
+                .filter(|r| r.t_s >= w[0] && r.t_s < w[1])
+                .collect();
+            summarise((w[0], w[1]), &span)
+        })
+        .collect()
+}
+
+/// Start, end and the breakpoints of the speed reference and the load between, merged when
+/// closer than 20 ms.
+fn phase_cuts(sc: &Scenario) -> Vec<f64> {
+    let mut cuts: Vec<f64> = sc
+        .speed_ref
+        .times()
+        .iter()
+        .chain(sc.load.times())
+        .copied()
+        .filter(|t| *t > 0.0 && *t < sc.duration_s)
+        .collect();
+    cuts.push(0.0);
+    cuts.push(sc.duration_s);
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup_by(|a, b| (*a - *b).abs() < 0.02);
+    cuts
+}
+
+/// The statistics of the rows `span` of the phase `span_s`; `None` for no rows.
+fn summarise(span_s: (f64, f64), span: &[&Row]) -> Option<Phase> {
+    if span.is_empty() {
+        return None;
+    }
+    let tail = &span[span.len() / 2..];
+    let speed_err_rpm = tail
+        .iter()
+        .map(|r| (r.speed_rpm - r.speed_ref_rpm).abs())
+        .sum::<f64>()
+        / tail.len() as f64;
+    let reference = tail.iter().map(|r| r.speed_ref_rpm.abs()).sum::<f64>() / tail.len() as f64;
+    let running: Vec<f64> = span
+        .iter()
+        .filter(|r| r.state == DriveState::Run)
+        .map(|r| r.angle_error_rad())
+        .collect();
+    let rms = if running.is_empty() {
+        0.0
+    } else {
+        (running.iter().map(|x| x * x).sum::<f64>() / running.len() as f64).sqrt()
+    };
+    let mut faults: Vec<&'static str> = span
+        .iter()
+        .map(|r| r.fault())
+        .filter(|f| !f.is_empty())
+        .collect();
+    faults.dedup();
+    Some(Phase {
+        span_s,
+        speed_err_rpm,
+        speed_err_rel: (reference > 1.0).then(|| speed_err_rpm / reference),
+        angle_err_rms_rad: rms,
+        angle_err_max_rad: running.iter().fold(0.0, |a, x| a.max(x.abs())),
+        i_peak_a: span.iter().fold(0.0, |a, r| a.max(r.i_peak_a)),
+        faults,
+    })
+}
+
+/// Prints what was run, the initial position found, one line per phase and the first fault.
+pub(super) fn print_summary(sc: &Scenario, result: &Run) {
+    println!(
+        "pmsm simulate: {} on {}, {:?} estimator, start-up {:?}, {:.3} s at {:.0} Hz",
+        sc.path.display(),
+        sc.motor.name,
+        sc.control.observer,
+        sc.control.startup,
+        sc.duration_s,
+        sc.control.sample_hz.unwrap_or(sc.inverter.pwm_hz)
+    );
+    if let Some((est, truth)) = result.ipd {
+        let err = wrap((est - truth).to_radians()).to_degrees();
+        println!(
+            "  initial position: detected {est:.1}°, true {truth:.1}° (error {err:+.1}° electrical)"
+        );
+    }
+    print_phases(&phases(sc, &result.rows));
+    if let Some(r) = result
+        .rows
+        .iter()
+        .find(|r| matches!(r.state, DriveState::Fault(_)))
+    {
+        println!("  first fault at t = {:.4} s: {:?}", r.t_s, r.state);
+    }
+}
+
+fn print_phases(phases: &[Phase]) {
+    println!(
+        "  {:>15} {:>14} {:>9} {:>16} {:>10}  faults",
+        "phase (s)", "speed err", "(%)", "angle err rms/max", "I peak (A)"
+    );
+    for ph in phases {
+        println!(
+            "  {:>6.3} – {:>6.3} {:>10.2} rpm {:>9} {:>7.4}/{:<7.4} rad {:>8.2}   {}",
+            ph.span_s.0,
+            ph.span_s.1,
+            ph.speed_err_rpm,
+            ph.speed_err_rel
+                .map_or("-".to_owned(), |x| format!("{:.2}", 100.0 * x)),
+            ph.angle_err_rms_rad,
+            ph.angle_err_max_rad,
+            ph.i_peak_a,
+            if ph.faults.is_empty() {
+                "none".to_owned()
+            } else {
+                ph.faults.join(", ")
+            }
+        );
+    }
+}

@@ -1,0 +1,205 @@
+//! The simulation loop: one drive step per control sample, then the plant over the PWM
+//! periods of that sample; one [`Row`] per sample.
+
+use super::drive::{DriveSetup, build_drive};
+use super::plant::{Injector, build_plant};
+use crate::scenario_file::Scenario;
+use anyhow::{Result, anyhow};
+use pmsm_core::Abc;
+use pmsm_core::drive::{Drive, DriveInput, DriveOutput, DriveState};
+use pmsm_plant::{Plant, PlantError};
+use std::f64::consts::{PI, TAU};
+
+/// One control sample of a run, in SI units.
+#[derive(Clone, Debug)]
+pub struct Row {
+    /// Time, s.
+    pub t_s: f64,
+    /// Speed reference, r/min.
+    pub speed_ref_rpm: f64,
+    /// True speed, r/min.
+    pub speed_rpm: f64,
+    /// Estimated speed, r/min.
+    pub speed_est_rpm: f64,
+    /// True electrical angle, rad, [−π, π).
+    pub theta_e_rad: f64,
+    /// Estimated electrical angle, rad, [−π, π).
+    pub theta_e_est_rad: f64,
+    /// True rotor-frame currents, A.
+    pub i_dq_a: [f64; 2],
+    /// q-current reference, A.
+    pub i_q_ref_a: f64,
+    /// Commanded voltage, V.
+    pub v_ab_v: [f64; 2],
+    /// Leg duties.
+    pub duties: [f64; 3],
+    /// Inverter switching.
+    pub pwm_on: bool,
+    /// The drive's state.
+    pub state: DriveState,
+    /// Largest phase current at this sample, A.
+    pub i_peak_a: f64,
+    /// The estimator's health figure as the drive filters it, per unit (of `V_b` for the EMF
+    /// estimators, of `I_b` for the current-model MRAS; 0 outside the closed loop).
+    pub health: f64,
+}
+
+impl Row {
+    /// Estimated minus true angle, wrapped, rad.
+    pub fn angle_error_rad(&self) -> f64 {
+        wrap(self.theta_e_est_rad - self.theta_e_rad)
+    }
+
+    /// The fault's name, or "".
+    pub fn fault(&self) -> &'static str {
+        match self.state {
+            DriveState::Fault(f) => f.name(),
+            _ => "",
+        }
+    }
+}
+
+/// Wraps to [−π, π).
+pub fn wrap(x: f64) -> f64 {
+    (x + PI).rem_euclid(TAU) - PI
+}
+
+/// The result of a run.
+#[derive(Debug)]
+pub struct Run {
+    /// Every control sample.
+    pub rows: Vec<Row>,
+    /// Detected initial angle and true one, degrees, when the start-up was `ipd`.
+    pub ipd: Option<(f64, f64)>,
+}
+
+/// Builds the drive and the plant of `sc` and runs them.
+pub fn run_scenario(sc: &Scenario) -> Result<Run> {
+    let setup = build_drive(sc)?;
+    let plant = build_plant(sc, &setup.inverter)?;
+    step_loop(sc, setup, plant)
+}
+
+/// What the drive's sensors read at the end of the last PWM period.
+struct Sensed {
+    /// Phase currents from the ADC codes, A.
+    i_abc_a: [f64; 3],
+    /// The codes, at which a stuck channel freezes.
+    codes: [u16; 3],
+    /// Bus voltage, V.
+    vdc_v: f64,
+}
+
+/// Starts the drive and steps it and the plant over the scenario's duration, injecting its
+/// faults; one row per control sample.
+pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Result<Run> {
+    let shown = sc.path.display();
+    let n = (sc.duration_s * setup.sample_hz).round() as usize;
+    let mut rows = Vec::with_capacity(n);
+    let mut sensed = Sensed {
+        i_abc_a: [0.0; 3],
+        codes: [0; 3],
+        vdc_v: sc.inverter.vdc_v,
+    };
+    let mut ipd = None;
+    let mut injector = Injector::new(&sc.faults);
+    setup.drive.start();
+    for k in 0..n {
+        let t = k as f64 / setup.sample_hz;
+        let speed_ref_rpm = sc.speed_ref.at(t);
+        let out = control_step(&mut setup, speed_ref_rpm, &sensed);
+        if ipd.is_none() {
+            ipd = ipd_detected(&setup.drive, &plant);
+        }
+        rows.push(record(t, speed_ref_rpm, &setup, &out, &plant));
+        injector
+            .apply(t, &mut plant, sensed.codes)
+            .map_err(|e| anyhow!("{shown}: t = {t:.6} s: {e}"))?;
+        let load_nm = sc.load.at(t);
+        advance_plant(&mut plant, &out, load_nm, setup.pwm_per_sample, &mut sensed)
+            .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
+    }
+    Ok(Run { rows, ipd })
+}
+
+/// One drive step on what the sensors read, towards `speed_ref_rpm`.
+fn control_step(setup: &mut DriveSetup, speed_ref_rpm: f64, sensed: &Sensed) -> DriveOutput {
+    let base = &setup.base;
+    let p = setup.model.p();
+    setup
+        .drive
+        .set_speed_ref(base.speed_pu(speed_ref_rpm * TAU / 60.0 * p));
+    let i = sensed.i_abc_a;
+    let input = DriveInput {
+        i_abc: Abc {
+            a: base.current_pu(i[0]),
+            b: base.current_pu(i[1]),
+            c: base.current_pu(i[2]),
+        },
+        vdc: base.voltage_pu(sensed.vdc_v),
+    };
+    setup.drive.step(&input)
+}
+
+/// The detected initial angle and the plant's true one, degrees in [0, 360), once the initial
+/// position detection has a result.
+fn ipd_detected(drive: &Drive, plant: &Plant) -> Option<(f64, f64)> {
+    let r = drive.ipd_result()?;
+    let true_deg = plant
+        .motor()
+        .state()
+        .theta_e_rad
+        .to_degrees()
+        .rem_euclid(360.0);
+    Some((r.theta_deg_0_360(), true_deg))
+}
+
+/// The row of the sample at `t`: the plant's truth and the drive's telemetry, in SI units.
+fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, plant: &Plant) -> Row {
+    let (drive, base, p) = (&setup.drive, &setup.base, setup.model.p());
+    let tel = drive.telemetry();
+    let s = plant.motor().state();
+    let i_true = plant.motor().i_abc();
+    Row {
+        t_s: t,
+        speed_ref_rpm,
+        speed_rpm: s.omega_m_rad_s * 60.0 / TAU,
+        speed_est_rpm: base.speed_rad_s(tel.estimate.omega) / p * 60.0 / TAU,
+        theta_e_rad: wrap(s.theta_e_rad),
+        theta_e_est_rad: tel.estimate.theta.to_rad(),
+        i_dq_a: plant.motor().i_dq(),
+        i_q_ref_a: base.current_a(tel.i_ref.q),
+        v_ab_v: [base.voltage_v(tel.v.alpha), base.voltage_v(tel.v.beta)],
+        duties: if out.pwm_on {
+            out.duties.to_f64()
+        } else {
+            [0.0; 3]
+        },
+        pwm_on: out.pwm_on,
+        state: drive.state(),
+        i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
+        health: pmsm_core::units::to_f64(drive.health()),
+    }
+}
+
+/// Integrates the plant over the `periods` PWM periods of one control sample under `out` and
+/// `load_nm`, and updates what the sensors read.
+fn advance_plant(
+    plant: &mut Plant,
+    out: &DriveOutput,
+    load_nm: f64,
+    periods: usize,
+    sensed: &mut Sensed,
+) -> Result<(), PlantError> {
+    for _ in 0..periods {
+        let sample = if out.pwm_on {
+            plant.step_pwm(out.duties.to_f64(), load_nm)
+        } else {
+            plant.step_off(load_nm)
+        }?;
+        sensed.i_abc_a = sample.i_abc_a_measured;
+        sensed.codes = sample.adc_codes;
+        sensed.vdc_v = sample.vdc_v;
+    }
+    Ok(())
+}

@@ -1,0 +1,33 @@
+//! Statistics of a stretch of a run, for tests and reports.
+
+use super::Row;
+
+/// The rows with `t0 ≤ t < t1`.
+pub fn window(rows: &[Row], t0: f64, t1: f64) -> Vec<&Row> {
+    rows.iter().filter(|r| r.t_s >= t0 && r.t_s < t1).collect()
+}
+
+/// Largest |angle error|, rad.
+pub fn max_angle(rows: &[&Row]) -> f64 {
+    rows.iter()
+        .map(|r| r.angle_error_rad().abs())
+        .fold(0.0, f64::max)
+}
+
+/// RMS angle error, rad (0 for no rows).
+pub fn rms_angle(rows: &[&Row]) -> f64 {
+    (rows
+        .iter()
+        .map(|r| r.angle_error_rad().powi(2))
+        .sum::<f64>()
+        / rows.len().max(1) as f64)
+        .sqrt()
+}
+
+/// Mean |speed − reference| / |reference| (0 for no rows).
+pub fn speed_err(rows: &[&Row]) -> f64 {
+    rows.iter()
+        .map(|r| (r.speed_rpm - r.speed_ref_rpm).abs() / r.speed_ref_rpm.abs())
+        .sum::<f64>()
+        / rows.len().max(1) as f64
+}

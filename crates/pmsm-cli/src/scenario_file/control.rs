@@ -1,0 +1,131 @@
+//! `[control]`: the estimator, the start-up, dead-time compensation, and the overrides of
+//! the drive's default design (gains, bandwidths, limits, the model's errors).
+
+use pmsm_core::params::{ParamError, in_range, positive};
+use serde::Deserialize;
+
+/// Estimators a drive can use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ObserverKind {
+    /// Nonlinear reduced-order observer of Solsona, Valla, Muravchik (2000).
+    Nlo,
+    /// Linear reduced-order observer (AO) of Solsona, Valla, Muravchik (2000).
+    Ao,
+    /// Tomita's MRAS on the AO, as Solsona, Valla, Muravchik (2000) use it.
+    MrasEmf,
+    /// Current-model MRAS of Khlaief, Boussak, Gossa (2012).
+    MrasCurrent,
+}
+
+/// Start-up modes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Startup {
+    /// Initial position detection by voltage pulses (Khlaief, Boussak, Gossa (2012), §4).
+    Ipd,
+    /// Align the rotor with a d-axis current first.
+    Align,
+    /// The initial angle is known (from `[initial]`).
+    Known,
+}
+
+/// `[control]` of a scenario.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Control {
+    /// Control sample rate, Hz (default: the PWM frequency).
+    pub sample_hz: Option<f64>,
+    /// Estimator.
+    pub observer: ObserverKind,
+    /// Start-up mode.
+    pub startup: Startup,
+    /// Dead-time compensation: `true` (both), `false` (off), or `"command"`, `"estimator"`,
+    /// `"both"`, `"off"`.
+    #[serde(default)]
+    pub deadtime_compensation: Compensation,
+    /// Observer gain, rad/s (the estimators of Solsona, Valla, Muravchik (2000)).
+    pub observer_gain: Option<f64>,
+    /// Current-loop bandwidth, Hz.
+    pub current_bandwidth_hz: Option<f64>,
+    /// Speed-loop bandwidth, Hz.
+    pub speed_bandwidth_hz: Option<f64>,
+    /// MRAS-current adaptation bandwidth, Hz.
+    pub mras_bandwidth_hz: Option<f64>,
+    /// Current limit, A peak (default: twice rated peak).
+    pub current_limit_a: Option<f64>,
+    /// The drive's model of the motor is off the plant's: its resistance times this.
+    pub model_rs_factor: Option<f64>,
+    /// Its inductances times this.
+    pub model_l_factor: Option<f64>,
+    /// Its magnet flux times this.
+    pub model_flux_factor: Option<f64>,
+    /// Trip on loss of lock when the estimator's filtered health figure exceeds this, per unit
+    /// (`Protection::health_limit_pu`; default: report only).
+    pub health_limit_pu: Option<f64>,
+}
+
+impl Control {
+    /// The sample rate within [100 Hz, 200 kHz]; every gain, bandwidth, limit and factor
+    /// positive.
+    pub(super) fn check(&self) -> Result<(), ParamError> {
+        if let Some(hz) = self.sample_hz {
+            in_range("control.sample_hz", hz, 100.0, 200e3)?;
+        }
+        for (key, v) in [
+            ("control.observer_gain", self.observer_gain),
+            ("control.current_bandwidth_hz", self.current_bandwidth_hz),
+            ("control.speed_bandwidth_hz", self.speed_bandwidth_hz),
+            ("control.mras_bandwidth_hz", self.mras_bandwidth_hz),
+            ("control.current_limit_a", self.current_limit_a),
+            ("control.model_rs_factor", self.model_rs_factor),
+            ("control.model_l_factor", self.model_l_factor),
+            ("control.model_flux_factor", self.model_flux_factor),
+            ("control.health_limit_pu", self.health_limit_pu),
+        ] {
+            if let Some(v) = v {
+                positive(key, v)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Where dead-time compensation applies (`deadtime_compensation`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(untagged)]
+pub enum Compensation {
+    /// `true`: both; `false`: off.
+    Switch(bool),
+    /// By name.
+    Mode(CompensationMode),
+    /// Not given: off.
+    #[default]
+    #[serde(skip)]
+    Unset,
+}
+
+/// The named compensation modes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CompensationMode {
+    /// No compensation.
+    Off,
+    /// On the voltage command only.
+    Command,
+    /// On the estimator's voltage only (Khlaief, Boussak, Gossa (2012), eq. 9).
+    Estimator,
+    /// Both.
+    Both,
+}
+
+impl Compensation {
+    /// The mode.
+    pub fn mode(self) -> CompensationMode {
+        match self {
+            Compensation::Switch(true) => CompensationMode::Both,
+            Compensation::Switch(false) | Compensation::Unset => CompensationMode::Off,
+            Compensation::Mode(m) => m,
+        }
+    }
+}

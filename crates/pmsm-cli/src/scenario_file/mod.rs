@@ -1,0 +1,189 @@
+//! The scenario file of `pmsm simulate` (TOML, SI units).
+//!
+//! ```toml
+//! duration_s = 3.0
+//! motor = "motor-b.toml"            # relative to this file, or an inline table
+//!
+//! [inverter]
+//! vdc_v = 540.0
+//! pwm_hz = 14000.0
+//! dead_time_s = 2e-6
+//! model = "switching"              # or "averaged" (default "averaged")
+//! current_full_scale_a = 10.0      # optional ADC range, default 4 × rated peak current
+//!
+//! [control]
+//! sample_hz = 14000.0              # default pwm_hz
+//! observer = "mras-current"        # nlo | ao | mras-emf | mras-current
+//! startup = "ipd"                  # ipd | align | known
+//! deadtime_compensation = true
+//! observer_gain = 1000.0           # optional gains; defaults come from the motor
+//! current_bandwidth_hz = 500.0
+//! speed_bandwidth_hz = 10.0
+//! health_limit_pu = 0.5            # optional: trip on the estimator's health figure
+//!
+//! [initial]
+//! theta_e_deg = 40.0
+//! speed_rpm = 0.0
+//!
+//! [speed_ref]                      # piecewise linear
+//! t_s = [0.0, 0.5, 3.0]
+//! rpm = [0.0, 800.0, 800.0]
+//!
+//! [load]
+//! t_s = [0.0, 1.5, 1.5001]
+//! nm = [0.0, 0.0, 4.0]
+//!
+//! [sensing]
+//! adc_bits = 12
+//! noise_rms_a = 0.01
+//! ```
+//!
+//! Unknown keys and bad values end with one line naming the file and the key.
+//!
+//! One module per kind of table: [`hardware`] (`motor`, `[inverter]`, `[sensing]`),
+//! [`control`] (`[control]`), [`profiles`] (`[initial]`, `[speed_ref]`, `[load]`) and
+//! [`faults`] (`[faults]`). A new key goes into its table's struct and that struct's `check`.
+
+pub mod control;
+pub mod faults;
+pub mod hardware;
+pub mod profiles;
+
+pub use control::{Compensation, CompensationMode, Control, ObserverKind, Startup};
+pub use faults::{Faults, Phase, PhasePair};
+pub use hardware::{Inverter, InverterKind, Sensing};
+pub use profiles::Breakpoints;
+
+use crate::motor_file::{Motor, toml_error};
+use anyhow::{Result, anyhow, bail};
+use hardware::MotorRef;
+use pmsm_core::params::{ParamError, in_range};
+use profiles::{RawBreakpoints, RawInitial, breakpoints};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A validated scenario.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// The file it came from.
+    pub path: PathBuf,
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// The motor.
+    pub motor: Motor,
+    /// `[inverter]`.
+    pub inverter: Inverter,
+    /// `[control]`.
+    pub control: Control,
+    /// `[initial]` electrical angle, rad.
+    pub theta0_rad: f64,
+    /// `[initial]` mechanical speed, rad/s.
+    pub omega_m0_rad_s: f64,
+    /// `[speed_ref]`, r/min against time.
+    pub speed_ref: Breakpoints,
+    /// `[load]`, N·m against time.
+    pub load: Breakpoints,
+    /// `[sensing]`.
+    pub sensing: Sensing,
+    /// `[faults]`: faults injected into the plant.
+    pub faults: Faults,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    duration_s: f64,
+    motor: MotorRef,
+    inverter: Inverter,
+    control: Control,
+    #[serde(default)]
+    initial: RawInitial,
+    speed_ref: Option<RawBreakpoints>,
+    load: Option<RawBreakpoints>,
+    #[serde(default)]
+    sensing: Sensing,
+    #[serde(default)]
+    faults: Faults,
+}
+
+/// Reads and validates a scenario file.
+pub fn read(path: &Path) -> Result<Scenario> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
+    let raw: RawScenario = toml::from_str(&text).map_err(|e| toml_error(&e, &text, path))?;
+    let shown = path.display();
+    let motor = raw.motor.resolve(path)?;
+    // Table by table; the first bad key is the one reported.
+    let check = || -> Result<(), ParamError> {
+        in_range("duration_s", raw.duration_s, 1e-6, 1e4)?;
+        raw.inverter.check()?;
+        raw.control.check()?;
+        raw.sensing.check()?;
+        raw.initial.check()?;
+        raw.faults.check()
+    };
+    check().map_err(|e| anyhow!("{shown}: {e}"))?;
+    let speed_ref =
+        breakpoints(raw.speed_ref, "speed_ref", "rpm").map_err(|e| anyhow!("{shown}: {e}"))?;
+    let load = breakpoints(raw.load, "load", "nm").map_err(|e| anyhow!("{shown}: {e}"))?;
+    if raw
+        .control
+        .sample_hz
+        .is_some_and(|hz| hz > raw.inverter.pwm_hz)
+    {
+        bail!("{shown}: `control.sample_hz` must not exceed `inverter.pwm_hz`");
+    }
+    Ok(Scenario {
+        path: path.to_owned(),
+        duration_s: raw.duration_s,
+        motor,
+        inverter: raw.inverter,
+        control: raw.control,
+        theta0_rad: raw.initial.theta_e_deg.to_radians(),
+        omega_m0_rad_s: raw.initial.speed_rpm * std::f64::consts::TAU / 60.0,
+        speed_ref,
+        load,
+        sensing: raw.sensing,
+        faults: raw.faults,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(text: &str) -> String {
+        let dir = std::env::temp_dir().join(format!("pmsm-scn-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("s.toml");
+        std::fs::write(&p, text).unwrap();
+        let e = format!("{:#}", read(&p).unwrap_err());
+        std::fs::remove_dir_all(&dir).ok();
+        e
+    }
+
+    const BASE: &str = "duration_s = 1.0\n\
+        motor = { pole_pairs = 3, rs_ohm = 7.2, ld_h = 0.025, lq_h = 0.04, flux_wb = 0.305, j_kg_m2 = 0.0036 }\n\
+        [inverter]\nvdc_v = 540.0\npwm_hz = 14000.0\n\
+        [control]\nobserver = \"mras-current\"\nstartup = \"ipd\"\n";
+
+    #[test]
+    fn errors_name_the_key() {
+        assert!(err(&BASE.replace("vdc_v = 540.0", "vdc_v = -1.0")).contains("`inverter.vdc_v`"));
+        assert!(err(&BASE.replace("startup = \"ipd\"", "startup = \"push\"")).contains("startup"));
+        assert!(
+            err(&format!(
+                "{BASE}[speed_ref]\nt_s = [0.0, 1.0]\nrpm = [5.0]\n"
+            ))
+            .contains("speed_ref")
+        );
+        assert!(
+            err(&format!(
+                "{BASE}[speed_ref]\nt_s = [1.0, 0.5]\nrpm = [5.0, 6.0]\n"
+            ))
+            .contains("must increase")
+        );
+        assert!(err(&format!("{BASE}[control2]\nx = 1\n")).contains("control2"));
+        assert!(err(&BASE.replace("rs_ohm = 7.2", "rs_ohm = 0.0")).contains("`rs_ohm`"));
+    }
+}
