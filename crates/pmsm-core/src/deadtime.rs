@@ -53,6 +53,7 @@ use crate::units::PerUnit;
 
 /// Where the compensation is applied (module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DeadTimeMode {
     /// No compensation.
     Off,
@@ -79,6 +80,7 @@ impl DeadTimeMode {
 
 /// Which current the drive passes to [`DeadTimeConfig::error_vector`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CurrentSource {
     /// The measured current.
     Measured,
@@ -300,6 +302,7 @@ impl DeadTimeConfig {
 /// The bus terms of the dead-time vector for the last bus reading seen (see
 /// [`DeadTimeConfig::error_vector_abc_cached`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeadTimeBus {
     vdc: i32,
     /// `V_dead/3`, Q8.26.

@@ -37,6 +37,7 @@ use startup::OpenLoop;
 
 /// Why the drive stopped switching. Latched until [`Drive::clear_fault`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Fault {
     /// A phase current beyond the protection threshold (its value, per unit).
     OverCurrent(Pu),
@@ -85,6 +86,7 @@ impl Fault {
 
 /// What the drive is doing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveState {
     /// Outputs off, waiting for [`Drive::start`].
     Idle,
@@ -102,6 +104,7 @@ pub enum DriveState {
 
 /// One control sample's measurements, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveInput {
     /// Phase currents sampled at the PWM centre, per unit of `I_b`.
     pub i_abc: Abc,
@@ -111,6 +114,7 @@ pub struct DriveInput {
 
 /// What to do over the next PWM period.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveOutput {
     /// Leg duties (meaningless when `pwm_on` is false).
     pub duties: Duties,
@@ -120,6 +124,7 @@ pub struct DriveOutput {
 
 /// What the drive computed at the last sample, for logs and plots.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Telemetry {
     /// The estimate.
     pub estimate: Estimate,

@@ -17,6 +17,7 @@ use crate::num::Pu;
 
 /// What an estimator sees at one control sample, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ObserverInput {
     /// Stator current sampled at this instant, αβ, per unit of `I_b`.
     pub i: AlphaBeta,
@@ -27,6 +28,7 @@ pub struct ObserverInput {
 
 /// Rotor position and speed, as an estimator sees them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Estimate {
     /// Electrical angle of the rotor d axis (magnet north).
     pub theta: Angle,
@@ -132,6 +134,7 @@ pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
 
 /// Which estimator a drive runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EstimatorKind {
     /// Seed 000 NLO.
     Nlo,
@@ -179,6 +182,7 @@ impl AnyEstimator {
 
 /// The rotor frame an estimator already rotated the current into, for the drive to reuse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Frame {
     /// `sin_cos(θ̂)` of the last estimate, bit for bit.
     pub sc: crate::angle::SinCos,
