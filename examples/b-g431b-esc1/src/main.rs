@@ -18,7 +18,7 @@ use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::entry;
 use defmt_rtt as _;
 use panic_probe as _;
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveState};
+use pmsm_core::drive::{Drive, DriveConfig, DriveDesign};
 use pmsm_core::observer::EstimatorKind;
 use pmsm_core::{PerUnit, Pu};
 use pmsm_stm32::adc::{KnobCommand, OffsetCalibration, Scaling, SpeedKnob};
@@ -61,18 +61,9 @@ static CALIBRATED: AtomicBool = AtomicBool::new(false);
 static CAL_FAILED: AtomicBool = AtomicBool::new(false);
 static BREAK_SEEN: AtomicBool = AtomicBool::new(false);
 
-fn state_code(s: DriveState) -> u8 {
-    match s {
-        DriveState::Idle => 0,
-        DriveState::Ipd => 1,
-        DriveState::Align => 2,
-        DriveState::OpenLoop => 3,
-        DriveState::Run => 4,
-        DriveState::Fault(_) => 5,
-    }
-}
-
+/// Names by `DriveState::code`.
 const STATE_NAMES: [&str; 6] = ["idle", "ipd", "align", "open-loop", "run", "fault"];
+/// Names by `Fault::code` (0: none).
 const FAULT_NAMES: [&str; 11] = [
     "none",
     "overcurrent",
@@ -86,16 +77,6 @@ const FAULT_NAMES: [&str; 11] = [
     "loss_of_lock",
     "overrun",
 ];
-
-fn fault_code(s: DriveState) -> u8 {
-    match s {
-        DriveState::Fault(f) => FAULT_NAMES
-            .iter()
-            .position(|n| *n == f.name())
-            .map_or(0, |k| k as u8),
-        _ => 0,
-    }
-}
 
 /// A configuration the firmware cannot run: say so and stop here, outputs never enabled. No
 /// panic machinery (the release image has no panic path; CI checks its symbols).
@@ -291,8 +272,8 @@ fn ADC1_2() {
     }
     control_step(&mut c.drive, &mut c.pwm, &mut c.adc);
     let s = c.drive.state();
-    STATE.store(state_code(s), Relaxed);
-    FAULT.store(fault_code(s), Relaxed);
+    STATE.store(s.code(), Relaxed);
+    FAULT.store(s.fault_code(), Relaxed);
     SPEED_EST.store(c.drive.telemetry().estimate.omega.to_bits(), Relaxed);
     let cycles = DWT::cycle_count().wrapping_sub(start);
     if cycles > MAX_CYCLES.load(Relaxed) {
