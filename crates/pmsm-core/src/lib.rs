@@ -19,6 +19,7 @@
 //! | [`control`] | PI current loops and the IP speed loop, with anti-windup |
 //! | [`ipd`] | initial rotor position from voltage pulses, with N/S polarity |
 //! | [`drive`] | the drive: state machine and data flow of one control step |
+//! | [`recorder`] | the fault recorder: the last samples before a fault, per unit |
 //! | [`hal`] | the narrow hardware traits a board binding implements (PWM, current sampling) |
 #![no_std]
 #![cfg_attr(
@@ -45,6 +46,7 @@ pub mod ipd;
 pub mod num;
 pub mod observer;
 pub mod params;
+pub mod recorder;
 pub mod svpwm;
 pub mod units;
 
