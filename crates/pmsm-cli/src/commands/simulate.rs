@@ -30,6 +30,10 @@ pub struct Args {
     /// Also draw speed, angle error and currents to this SVG file.
     #[arg(long, value_name = "out.svg")]
     pub plot: Option<PathBuf>,
+    /// If the drive trips, write the fault recorder's samples before the fault to this CSV
+    /// (the input of `pmsm observe`; see `fault_dump`).
+    #[arg(long, value_name = "FILE")]
+    pub fault_dump: Option<PathBuf>,
 }
 
 /// The output columns, in order.
@@ -114,6 +118,8 @@ pub struct Run {
     pub rows: Vec<Row>,
     /// Detected initial angle and true one, degrees, when the start-up was `ipd`.
     pub ipd: Option<(f64, f64)>,
+    /// The fault recorder, fed after each step.
+    pub recorder: super::fault_dump::Recorder,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -216,6 +222,7 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
     let mut ipd = None;
     let mut last_codes = [0u16; 3];
     let mut injector = Injector::new(&sc.faults);
+    let mut recorder = super::fault_dump::Recorder::new(base, sample_hz);
     drive.start();
     for k in 0..n {
         let t = k as f64 / sample_hz;
@@ -230,6 +237,7 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
             vdc: base.voltage_pu(vdc),
         };
         let out = drive.step(&input);
+        recorder.record(k, &drive, &input);
         if ipd.is_none()
             && let Some(r) = drive.ipd_result()
         {
@@ -281,7 +289,11 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
             vdc = sample.vdc_v;
         }
     }
-    Ok(Run { rows, ipd })
+    Ok(Run {
+        rows,
+        ipd,
+        recorder,
+    })
 }
 
 /// Applies the `[faults]` of a scenario to the plant when their time comes, once each.
@@ -506,6 +518,11 @@ pub fn run(args: &Args) -> Result<()> {
         println!("  first fault at t = {:.4} s: {:?}", r.t_s, r.state);
     }
     println!("  output     {}", args.output.display());
+    super::fault_dump::write_if_faulted(
+        args.fault_dump.as_deref(),
+        &result.recorder,
+        &result.rows,
+    )?;
     if let Some(path) = &args.plot {
         draw(path, &sc, &result.rows)?;
         println!("  plot       {}", path.display());
