@@ -27,7 +27,6 @@ pub struct Angle(pub i32);
 
 /// Sine and cosine of an angle, both Q2.30.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SinCos {
     /// `sin θ`, Q2.30.
     pub sin: Unit,

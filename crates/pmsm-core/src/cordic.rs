@@ -76,7 +76,6 @@ const fn cordic_gain_q31() -> i64 {
 
 /// Magnitude and angle of a vector, from one CORDIC run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Polar {
     /// `√(x² + y²)` in the input's format, saturated.
     pub magnitude: Pu,

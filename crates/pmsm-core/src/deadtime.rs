@@ -302,7 +302,6 @@ impl DeadTimeConfig {
 /// The bus terms of the dead-time vector for the last bus reading seen (see
 /// [`DeadTimeConfig::error_vector_abc_cached`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeadTimeBus {
     vdc: i32,
     /// `V_dead/3`, Q8.26.

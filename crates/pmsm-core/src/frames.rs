@@ -12,7 +12,6 @@ use crate::num::{Pu, dot_unit, round_shift_sat, wmul};
 
 /// Three phase quantities, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Abc {
     /// Phase a.
     pub a: Pu,
@@ -24,7 +23,6 @@ pub struct Abc {
 
 /// A vector in the stationary αβ frame, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AlphaBeta {
     /// α component (along phase a).
     pub alpha: Pu,
@@ -34,7 +32,6 @@ pub struct AlphaBeta {
 
 /// A vector in the rotor dq frame, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Dq {
     /// d component (along the magnet flux).
     pub d: Pu,

@@ -241,7 +241,6 @@ impl IpdConfig {
 
 /// Why the detection failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum IpdFault {
     /// A phase current exceeded the limit (the current at that sample, per unit).
     OverCurrent(Pu),
@@ -269,7 +268,6 @@ pub enum IpdFault {
 
 /// The detected initial position.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct IpdResult {
     /// Electrical angle of the magnet's north pole. Read as `theta.0 as u32` it is in
     /// [0, 2π) (2³² per turn).
@@ -297,7 +295,6 @@ pub fn sector(theta: Angle) -> u8 {
 
 /// Output of one [`Ipd::step`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct IpdOutput {
     /// Duties for the next control period.
     pub duties: Duties,

@@ -38,6 +38,8 @@ pub mod angle;
 pub mod control;
 pub mod cordic;
 pub mod deadtime;
+#[cfg(feature = "defmt")]
+mod defmt_impls;
 pub mod drive;
 pub mod error;
 pub mod frames;

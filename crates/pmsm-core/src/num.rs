@@ -165,7 +165,6 @@ const fn umul_halves(a: u32, b: u32) -> u64 {
 /// control path. Valid for `|x| ≤ d` (a fraction within ±1); beyond, `x << pre` saturates and
 /// so does the result.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Reciprocal {
     r: i32,
     pre: u32,
@@ -272,7 +271,6 @@ pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
 /// significant bits whatever the magnitude: [`Gain::new`] picks the shift once in the
 /// configuration, and [`Gain::apply`] is one 32×32→64 multiply and a rounding shift.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Gain {
     mantissa: i32,
     shift: u32,
@@ -355,7 +353,6 @@ impl Gain {
 /// reject values outside the range. `Coef<30>` holds gains below 2 in magnitude to 9.3e−10,
 /// `Coef<24>` below 128 to 6e−8.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Coef<const F: u32>(i32);
 
 impl<const F: u32> Coef<F> {

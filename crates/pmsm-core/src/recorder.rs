@@ -27,7 +27,6 @@ use crate::observer::Estimate;
 
 /// One recorded control sample (per unit, see the [module](self) table).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FaultSample {
     /// Phase currents given to the step.
     pub i_abc: Abc,
@@ -66,7 +65,7 @@ impl<const N: usize> FaultRecorder<N> {
     /// Records the sample that `drive` has just stepped on `input`, unless frozen. Returns
     /// true at the sample that freezes it (the drive's first sample in `Fault`).
     pub fn record(&mut self, drive: &Drive, input: &DriveInput) -> bool {
-        if self.fault.is_some() {
+        if self.fault.is_some() || !self.position_in_range() {
             return false;
         }
         let state = drive.state();
@@ -108,7 +107,29 @@ impl<const N: usize> FaultRecorder<N> {
     /// The samples, oldest first (the last one is the drive's first sample in `Fault` once
     /// frozen).
     pub fn samples(&self) -> impl Iterator<Item = &FaultSample> + '_ {
-        self.samples.oldest_ordered()
+        // The guard never fails; it lets the compiler see that the slicing inside cannot.
+        self.position_in_range()
+            .then(|| self.samples.oldest_ordered())
+            .into_iter()
+            .flatten()
+    }
+
+    /// Sample `n`, oldest first.
+    pub fn sample(&self, n: usize) -> Option<FaultSample> {
+        self.samples().nth(n).copied()
+    }
+
+    /// The buffer's write position is below `N`. Always true; `HistoryBuf` indexes and slices
+    /// its storage at that position, and testing it here (through its public accessors, which
+    /// both return it) lets the compiler drop those bounds checks, so a firmware image keeps
+    /// no panic path.
+    fn position_in_range(&self) -> bool {
+        let at = if self.samples.is_full() {
+            self.samples.oldest_index()
+        } else {
+            Some(self.samples.len())
+        };
+        matches!(at, Some(k) if k < N)
     }
 
     /// Empties the recorder and records again.

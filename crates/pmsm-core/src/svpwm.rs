@@ -148,7 +148,6 @@ impl SvpwmConfig {
 /// What the modulator needs of the last bus reading seen: the circle's radius and the
 /// reading's [`Reciprocal`], recomputed only when the reading changes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BusReciprocal {
     /// The bus reading (bits of [`Pu`]) the rest belongs to; 0 when empty (never a valid bus).
     vdc: i32,
@@ -244,7 +243,6 @@ fn limit(v: AlphaBeta, v_max: Pu) -> (AlphaBeta, bool) {
 /// Duties of the three legs, Q2.30 in [0, 1]: the fraction of the PWM period each high-side
 /// switch is on, centred in the period.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Duties {
     /// Leg a.
     pub a: Unit,
@@ -291,7 +289,6 @@ impl Duties {
 
 /// Output of [`SvpwmConfig::modulate`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SvpwmOutput {
     /// Leg duties.
     pub duties: Duties,

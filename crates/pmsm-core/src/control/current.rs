@@ -187,7 +187,6 @@ impl CurrentConfig {
 
 /// What the current controllers see at one sample, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CurrentInput {
     /// Current reference (`i_d* = 0` for seed 001's drive).
     pub i_ref: Dq,
@@ -203,7 +202,6 @@ pub struct CurrentInput {
 
 /// Output of the current controllers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CurrentOutput {
     /// Voltage command in the rotor frame, per unit; `|v| ≤ V_max` (within 1 LSB).
     pub v: Dq,

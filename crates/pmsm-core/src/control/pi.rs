@@ -106,7 +106,6 @@ pub(crate) fn coef_in<const F: u32>(
 
 /// Output of one [`Pi::step`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PiOutput {
     /// Clamped output, per unit.
     pub u: Pu,

@@ -204,7 +204,6 @@ impl SpeedConfig {
 
 /// Output of the speed controller.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SpeedOutput {
     /// q-current reference, per unit of `I_b`, within `±I_max`.
     pub iq_ref: Pu,

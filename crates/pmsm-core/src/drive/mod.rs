@@ -37,7 +37,6 @@ use startup::OpenLoop;
 
 /// Why the drive stopped switching. Latched until [`Drive::clear_fault`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Fault {
     /// A phase current beyond the protection threshold (its value, per unit).
     OverCurrent(Pu),
@@ -104,7 +103,6 @@ pub enum DriveState {
 
 /// One control sample's measurements, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveInput {
     /// Phase currents sampled at the PWM centre, per unit of `I_b`.
     pub i_abc: Abc,

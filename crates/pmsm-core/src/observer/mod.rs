@@ -17,7 +17,6 @@ use crate::num::Pu;
 
 /// What an estimator sees at one control sample, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ObserverInput {
     /// Stator current sampled at this instant, αβ, per unit of `I_b`.
     pub i: AlphaBeta,
@@ -28,7 +27,6 @@ pub struct ObserverInput {
 
 /// Rotor position and speed, as an estimator sees them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Estimate {
     /// Electrical angle of the rotor d axis (magnet north).
     pub theta: Angle,
