@@ -270,8 +270,9 @@ mod app {
                     c.calibration = None;
                     Event::Calibrated
                 }
-                // Stays in calibration, outputs off, and reports again after the next batch.
-                Some(Err(_)) => Event::CalibrationFailed,
+                // Stays here with the outputs off; said once a second.
+                Some(Err(_)) if c.tick.is_multiple_of(motor::PWM_HZ) => Event::CalibrationFailed,
+                Some(Err(_)) => return,
             };
             cx.shared.reports.lock(|q| report(q, c, event));
             return;
