@@ -22,6 +22,7 @@ use core::ops::{Add, Neg, Sub};
 
 /// Electrical angle, one turn = 2³² (LSB = 2π/2³² ≈ 1.46e−9 rad), range [−π, π), wrapping.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Angle(pub i32);
 
 /// Sine and cosine of an angle, both Q2.30.

@@ -53,6 +53,7 @@ use crate::units::PerUnit;
 
 /// Where the compensation is applied (module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DeadTimeMode {
     /// No compensation.
     Off,
@@ -79,6 +80,7 @@ impl DeadTimeMode {
 
 /// Which current the drive passes to [`DeadTimeConfig::error_vector`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CurrentSource {
     /// The measured current.
     Measured,

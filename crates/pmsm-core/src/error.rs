@@ -5,6 +5,7 @@ use core::fmt;
 
 /// Why a configuration could not be built.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ConfigError {
     /// A physical parameter is invalid; the key names it.
     Param(ParamError),

@@ -6,6 +6,13 @@
 //! trait has an error path: a timer or an ADC that cannot do its job is a configuration
 //! problem of the binding's constructor, and a bad sample is the drive's to judge (its
 //! current-sensor checks).
+//!
+//! [`DutyCyclePwm`] implements [`ThreePhasePwm`] over three embedded-hal 1.0 `SetDutyCycle`
+//! channels and an enable `OutputPin`, so any embedded-hal HAL's complementary PWM drives the
+//! core.
+
+mod embedded;
+pub use embedded::{DutyCyclePwm, PwmErrors};
 
 use crate::drive::{Drive, DriveInput, DriveOutput};
 use crate::svpwm::Duties;

@@ -19,6 +19,7 @@
 //! | [`control`] | PI current loops and the IP speed loop, with anti-windup |
 //! | [`ipd`] | initial rotor position from voltage pulses, with N/S polarity |
 //! | [`drive`] | the drive: state machine and data flow of one control step |
+//! | [`recorder`] | the fault recorder: the last samples before a fault, per unit |
 //! | [`hal`] | the narrow hardware traits a board binding implements (PWM, current sampling) |
 #![no_std]
 #![cfg_attr(
@@ -37,6 +38,8 @@ pub mod angle;
 pub mod control;
 pub mod cordic;
 pub mod deadtime;
+#[cfg(feature = "defmt")]
+mod defmt_impls;
 pub mod drive;
 pub mod error;
 pub mod frames;
@@ -45,6 +48,7 @@ pub mod ipd;
 pub mod num;
 pub mod observer;
 pub mod params;
+pub mod recorder;
 pub mod svpwm;
 pub mod units;
 

@@ -35,6 +35,7 @@ pub struct MotorParams {
 
 /// A parameter that is missing, not finite or out of its physical range.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ParamError {
     /// The key of the offending parameter, as written in a motor or scenario file.
     pub key: &'static str,
@@ -44,6 +45,7 @@ pub struct ParamError {
 
 /// Why a parameter was rejected.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ParamReason {
     /// NaN or infinite.
     NotFinite,

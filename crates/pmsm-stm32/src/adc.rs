@@ -267,7 +267,9 @@ impl SpeedKnob {
         if !self.running {
             return KnobCommand::Stop;
         }
-        let span = (self.full_scale - self.stop_below) as i64;
+        // `new` keeps full_scale > stop_below; the `max(1)` shows the compiler that the
+        // division cannot fail (no panic path in a firmware image).
+        let span = i64::from(self.full_scale.saturating_sub(self.stop_below)).max(1);
         let x = (code.min(self.full_scale).saturating_sub(self.stop_below)) as i64;
         KnobCommand::Run(Pu::from_bits((self.max.to_bits() as i64 * x / span) as i32))
     }

@@ -1,9 +1,10 @@
 //! Register-level set-up and run-time access of the STM32G4 peripherals (bare-metal ARM
-//! only). Register values come from [`crate::regs`] (host-tested); this module only writes
-//! them, in the order the reference manual (RM0440) asks for.
+//! only), in the order the reference manual (RM0440) asks for. Single fields are written
+//! through the PAC's named fields and values; the computed words (ADC sequences and sampling
+//! times, the PLL, the flash wait states) come from [`crate::regs`], host-tested.
 //!
-//! `unsafe` here is the PAC's whole-register `bits` writes; each value is documented in
-//! `regs`.
+//! `unsafe` here is the PAC's `bits` writes: whole-register values from `regs`, plain
+//! numeric fields the PAC leaves unchecked, and the clock set-up.
 
 use crate::adc::{RawSample, Scaling};
 use crate::regs;
@@ -82,12 +83,29 @@ pub fn enable_peripheral_clocks(rcc: &pac::RCC) {
     let _ = rcc.apb2enr().read().bits();
 }
 
-/// OPAMP1/2/3 as PGA gain stages (VINP0, bias on VINM0, high speed, output to the ADC).
+/// OPAMP1/2/3 as PGA gain stages: VINP0 in, PGA mode with the gain network's bottom on
+/// VINM0 (bias/filtering, HAL's `OPAMP_PGA_CONNECT_INVERTINGINPUT_IO0_BIAS`), high-speed
+/// mode, output routed internally to the ADC, factory trimming, enabled.
 pub fn opamps_pga(opamp: &pac::OPAMP, gain: regs::PgaGain) {
-    let v = regs::opamp_csr_pga(gain);
-    opamp.opamp1_csr().write(|w| unsafe { w.bits(v) });
-    opamp.opamp2_csr().write(|w| unsafe { w.bits(v) });
-    opamp.opamp3_csr().write(|w| unsafe { w.bits(v) });
+    macro_rules! pga {
+        ($csr:ident) => {
+            opamp.$csr().write(|w| {
+                w.vp_sel().vinp0().vm_sel().pga().opahsm().set_bit();
+                w.opaintoen().set_bit().opaen().set_bit();
+                match gain {
+                    regs::PgaGain::X2 => w.pga_gain().gain2_filtering_vinm0(),
+                    regs::PgaGain::X4 => w.pga_gain().gain4_filtering_vinm0(),
+                    regs::PgaGain::X8 => w.pga_gain().gain8_filtering_vinm0(),
+                    regs::PgaGain::X16 => w.pga_gain().gain16_filtering_vinm0(),
+                    regs::PgaGain::X32 => w.pga_gain().gain32_filtering_vinm0(),
+                    regs::PgaGain::X64 => w.pga_gain().gain64_filtering_vinm0(),
+                }
+            })
+        };
+    }
+    pga!(opamp1_csr);
+    pga!(opamp2_csr);
+    pga!(opamp3_csr);
 }
 
 /// TIM1 as a centre-aligned complementary three-phase PWM.
@@ -106,31 +124,84 @@ impl Tim1Pwm {
         brk: regs::BreakSource,
         break_active_high: bool,
     ) -> Self {
-        tim.cr1()
-            .write(|w| unsafe { w.bits(regs::tim1_cr1(dead.ckd)) });
-        tim.cr2().write(|w| unsafe { w.bits(regs::TIM1_CR2) });
-        tim.psc().write(|w| unsafe { w.bits(timing.psc as u32) });
-        tim.arr().write(|w| unsafe { w.bits(timing.arr as u32) });
+        // Centre-aligned mode 1, auto-reload preload, dead-time clock; counter still off.
+        tim.cr1().write(|w| {
+            w.cms().center_aligned1().arpe().set_bit();
+            match dead.ckd {
+                0 => w.ckd().div1(),
+                1 => w.ckd().div2(),
+                _ => w.ckd().div4(),
+            }
+        });
+        // TRGO2 = OC4REF; idle states low (OISx = OISxN = 0, the reset value).
+        tim.cr2()
+            .write(|w| unsafe { w.mms2().bits(regs::MMS2_OC4REF) });
+        tim.psc().write(|w| w.psc().set(timing.psc));
+        tim.arr().write(|w| w.arr().set(timing.arr as u32));
         // RCR = 1: in centre-aligned mode, one update (preload transfer) per PWM period.
-        tim.rcr().write(|w| unsafe { w.bits(1) });
-        tim.ccmr1_output()
-            .write(|w| unsafe { w.bits(regs::TIM1_CCMR1) });
-        tim.ccmr2_output()
-            .write(|w| unsafe { w.bits(regs::TIM1_CCMR2) });
+        tim.rcr().write(|w| w.rep().set(1));
+        // Legs in PWM mode 1 with preload; channel 4 in PWM mode 2 with preload, so that
+        // OC4REF (TRGO2) rises when the counter passes CCR4 on its way up: with
+        // CCR4 = ARR − 1, one timer clock before the peak, the centre of the low-side
+        // conduction.
+        tim.ccmr1_output().write(|w| {
+            w.oc1m().pwm_mode1().oc1pe().set_bit();
+            w.oc2m().pwm_mode1().oc2pe().set_bit()
+        });
+        tim.ccmr2_output().write(|w| {
+            w.oc3m().pwm_mode1().oc3pe().set_bit();
+            w.oc4m().pwm_mode2().oc4pe().set_bit()
+        });
         let half = timing.arr as u32 / 2;
-        tim.ccr1().write(|w| unsafe { w.bits(half) });
-        tim.ccr2().write(|w| unsafe { w.bits(half) });
-        tim.ccr3().write(|w| unsafe { w.bits(half) });
+        tim.ccr1().write(|w| w.ccr().set(half));
+        tim.ccr2().write(|w| w.ccr().set(half));
+        tim.ccr3().write(|w| w.ccr().set(half));
         tim.ccr4()
-            .write(|w| unsafe { w.bits(timing.arr as u32 - 1) });
-        tim.af1().write(|w| unsafe { w.bits(regs::tim1_af1(brk)) });
-        tim.bdtr()
-            .write(|w| unsafe { w.bits(regs::tim1_bdtr(dead.dtg, break_active_high, 3)) });
-        tim.ccer().write(|w| unsafe { w.bits(regs::TIM1_CCER) });
+            .write(|w| w.ccr().set((timing.arr as u32).saturating_sub(1)));
+        // Break sources (input polarities left at reset: not inverted).
+        let cmp = |k: u8| match brk {
+            regs::BreakSource::Comparators(mask) => mask & (1 << k) != 0,
+            _ => false,
+        };
+        tim.af1().write(|w| {
+            w.bkine().bit(brk == regs::BreakSource::Pin);
+            w.bkcmp1e()
+                .bit(cmp(0))
+                .bkcmp2e()
+                .bit(cmp(1))
+                .bkcmp3e()
+                .bit(cmp(2));
+            w.bkcmp4e()
+                .bit(cmp(3))
+                .bkcmp5e()
+                .bit(cmp(4))
+                .bkcmp6e()
+                .bit(cmp(5));
+            w.bkcmp7e().bit(cmp(6))
+        });
+        // Dead time; off-state outputs driven to the idle level, low (OSSR = OSSI = 1: both
+        // switches of a leg off); break enabled with its polarity; no automatic output enable
+        // (after a break the outputs stay off until software sets MOE again); break filter 3.
+        tim.bdtr().write(|w| {
+            w.dtg().set(dead.dtg).ossi().set_bit().ossr().set_bit();
+            w.bke()
+                .set_bit()
+                .bkp()
+                .bit(break_active_high)
+                .aoe()
+                .clear_bit();
+            unsafe { w.bkf().bits(regs::BREAK_FILTER) }
+        });
+        // Both switches of each leg, active high (the L6387 inputs). CH4 drives no pin.
+        tim.ccer().write(|w| {
+            w.cc1e().set_bit().cc1ne().set_bit();
+            w.cc2e().set_bit().cc2ne().set_bit();
+            w.cc3e().set_bit().cc3ne().set_bit()
+        });
         // Load the preloaded registers (UG), clear the flags (the UG update and a stale break).
-        tim.egr().write(|w| unsafe { w.bits(1) });
+        tim.egr().write(|w| w.ug().set_bit());
         tim.sr().write(|w| unsafe { w.bits(0) });
-        tim.cr1().modify(|r, w| unsafe { w.bits(r.bits() | 1) });
+        tim.cr1().modify(|_, w| w.cen().set_bit());
         Self {
             tim,
             arr: timing.arr,
@@ -144,15 +215,15 @@ impl Tim1Pwm {
 
     /// Software break: the outputs off in hardware, as the break input does.
     pub fn trip(&mut self) {
-        self.tim.egr().write(|w| unsafe { w.bits(1 << 7) });
+        self.tim.egr().write(|w| w.bg().set_bit());
     }
 
     /// A break (hardware or software) occurred since the last call; clears the flag.
     pub fn take_break(&mut self) -> bool {
-        let sr = self.tim.sr().read().bits();
-        let brk = sr & (1 << 7) != 0;
+        let brk = self.tim.sr().read().bif().bit_is_set();
         if brk {
-            self.tim.sr().write(|w| unsafe { w.bits(!(1 << 7)) });
+            // rc_w0: the other flags are written 1, unchanged.
+            self.tim.sr().write(|w| w.bif().clear_bit());
         }
         brk
     }
@@ -162,27 +233,23 @@ impl ThreePhasePwm for Tim1Pwm {
     #[inline]
     fn set_duties(&mut self, duties: &Duties) {
         let [a, b, c] = duties.to_compare(self.arr);
-        self.tim.ccr1().write(|w| unsafe { w.bits(a as u32) });
-        self.tim.ccr2().write(|w| unsafe { w.bits(b as u32) });
-        self.tim.ccr3().write(|w| unsafe { w.bits(c as u32) });
+        self.tim.ccr1().write(|w| w.ccr().set(a as u32));
+        self.tim.ccr2().write(|w| w.ccr().set(b as u32));
+        self.tim.ccr3().write(|w| w.ccr().set(c as u32));
     }
 
     fn enable(&mut self) {
         // A break that is still active keeps MOE at 0: the hardware wins.
-        self.tim
-            .bdtr()
-            .modify(|r, w| unsafe { w.bits(r.bits() | regs::BDTR_MOE) });
+        self.tim.bdtr().modify(|_, w| w.moe().set_bit());
     }
 
     fn disable(&mut self) {
-        self.tim
-            .bdtr()
-            .modify(|r, w| unsafe { w.bits(r.bits() & !regs::BDTR_MOE) });
+        self.tim.bdtr().modify(|_, w| w.moe().clear_bit());
     }
 
     #[inline]
     fn is_enabled(&self) -> bool {
-        self.tim.bdtr().read().bits() & regs::BDTR_MOE != 0
+        self.tim.bdtr().read().moe().bit_is_set()
     }
 }
 
@@ -236,7 +303,9 @@ impl InjectedAdc {
         ch: InjectedChannels,
         scaling: Scaling,
     ) -> Self {
-        common.ccr().write(|w| unsafe { w.bits(regs::ADC12_CCR) });
+        // Synchronous clock HCLK / 4 = 42.5 MHz (the ADC clock must stay ≤ 60 MHz),
+        // independent mode.
+        common.ccr().write(|w| w.ckmode().sync_div4());
         adc_power_up(&adc1);
         adc_power_up(&adc2);
         let (s1, s2) = regs::adc_smpr(&[ch.adc1[0], ch.adc1[1], ch.regular], regs::SMP_12_5);
@@ -255,11 +324,9 @@ impl InjectedAdc {
         // Clear the flags, enable JEOS on ADC1, arm the injected triggers (JADSTART).
         adc1.isr().write(|w| unsafe { w.bits(0x7FF) });
         adc2.isr().write(|w| unsafe { w.bits(0x7FF) });
-        adc1.ier().write(|w| unsafe { w.bits(1 << 6) });
-        adc1.cr()
-            .modify(|r, w| unsafe { w.bits(r.bits() | (1 << 3)) });
-        adc2.cr()
-            .modify(|r, w| unsafe { w.bits(r.bits() | (1 << 3)) });
+        adc1.ier().write(|w| w.jeosie().enabled());
+        adc1.cr().modify(|_, w| w.jadstart().start_conversion());
+        adc2.cr().modify(|_, w| w.jadstart().start_conversion());
         Self {
             adc1,
             adc2,
@@ -271,16 +338,12 @@ impl InjectedAdc {
     /// ADC2, which converts in parallel and finishes at the same time).
     #[inline]
     pub fn read_raw(&mut self) -> RawSample {
-        self.adc1
-            .isr()
-            .write(|w| unsafe { w.bits((1 << 5) | (1 << 6)) });
+        self.adc1.isr().write(|w| w.jeoc().clear().jeos().clear());
         let mut spin = 0u32;
-        while self.adc2.isr().read().bits() & (1 << 6) == 0 && spin < 1000 {
+        while self.adc2.isr().read().jeos().bit_is_clear() && spin < 1000 {
             spin += 1;
         }
-        self.adc2
-            .isr()
-            .write(|w| unsafe { w.bits((1 << 5) | (1 << 6)) });
+        self.adc2.isr().write(|w| w.jeoc().clear().jeos().clear());
         RawSample {
             i: [
                 self.adc1.jdr1().read().bits() as u16,
@@ -294,12 +357,10 @@ impl InjectedAdc {
     /// A blocking software-started conversion of the regular channel (injected
     /// conversions interrupt it and take priority).
     pub fn read_regular(&mut self) -> u16 {
-        self.adc1.isr().write(|w| unsafe { w.bits(1 << 2) });
-        self.adc1
-            .cr()
-            .modify(|r, w| unsafe { w.bits(r.bits() | (1 << 2)) });
-        while self.adc1.isr().read().bits() & (1 << 2) == 0 {}
-        self.adc1.dr().read().bits() as u16
+        self.adc1.isr().write(|w| w.eoc().clear());
+        self.adc1.cr().modify(|_, w| w.adstart().start_conversion());
+        while self.adc1.isr().read().eoc().bit_is_clear() {}
+        self.adc1.dr().read().rdata().bits()
     }
 }
 

@@ -13,6 +13,7 @@
 //! | shunt U, V, W | PA1, PA7, PB0 | OPAMP1/2/3 VINP0 → ADC1_IN13, ADC2_IN16, ADC2_IN18 |
 //! | bus voltage | PA0 | ADC1_IN1 |
 //! | potentiometer | PB12 | ADC1_IN11 |
+//! | user button | PC10 | GPIO input, pull-up, pressed = low (NOT VERIFIED against the schematic) |
 
 use pmsm_stm32::adc::{AdcSpec, CurrentSensing, VoltageSensing};
 use pmsm_stm32::hw::InjectedChannels;
@@ -94,4 +95,15 @@ pub fn pwm_pins(gpioa: &pac::GPIOA, gpiob: &pac::GPIOB, gpioc: &pac::GPIOC) {
     alternate!(gpioa, 12, 6);
     alternate!(gpiob, 15, 4);
     alternate!(gpioc, 13, 4);
+}
+
+/// The user button's pin as an input with its pull-up.
+pub fn button_pin(gpioc: &pac::GPIOC) {
+    gpioc.pupdr().modify(|_, w| w.pupdr10().pull_up());
+    gpioc.moder().modify(|_, w| w.moder10().input());
+}
+
+/// The user button is held down.
+pub fn button_down(gpioc: &pac::GPIOC) -> bool {
+    gpioc.idr().read().idr10().is_low()
 }

@@ -18,6 +18,7 @@ use crate::units::PerUnit;
 
 /// How the drive finds the rotor before it runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum StartupMode {
     /// Voltage pulses, saliency and saturation (seed 001 §4).
     Ipd,

@@ -85,6 +85,7 @@ impl Fault {
 
 /// What the drive is doing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveState {
     /// Outputs off, waiting for [`Drive::start`].
     Idle,
@@ -111,6 +112,7 @@ pub struct DriveInput {
 
 /// What to do over the next PWM period.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveOutput {
     /// Leg duties (meaningless when `pwm_on` is false).
     pub duties: Duties,
@@ -120,6 +122,7 @@ pub struct DriveOutput {
 
 /// What the drive computed at the last sample, for logs and plots.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Telemetry {
     /// The estimate.
     pub estimate: Estimate,

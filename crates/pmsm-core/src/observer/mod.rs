@@ -132,6 +132,7 @@ pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
 
 /// Which estimator a drive runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EstimatorKind {
     /// Seed 000 NLO.
     Nlo,
@@ -179,6 +180,7 @@ impl AnyEstimator {
 
 /// The rotor frame an estimator already rotated the current into, for the drive to reuse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Frame {
     /// `sin_cos(θ̂)` of the last estimate, bit for bit.
     pub sc: crate::angle::SinCos,

@@ -196,21 +196,9 @@ pub fn drive_input_words(x: &DriveInput, speed_ref: Pu, w: &mut [i32]) {
     set_word(w, 4, speed_ref.to_bits());
 }
 
-/// Code of a [`DriveState`] in the recording: idle 0, IPD 1, align 2, open loop 3, run 4,
-/// fault 5.
-pub fn state_code(s: DriveState) -> i32 {
-    match s {
-        DriveState::Idle => 0,
-        DriveState::Ipd => 1,
-        DriveState::Align => 2,
-        DriveState::OpenLoop => 3,
-        DriveState::Run => 4,
-        DriveState::Fault(_) => 5,
-    }
-}
-
-/// [`state_code`] of [`DriveState::Run`].
-pub const STATE_RUN: i32 = 4;
+/// [`DriveState::code`] of [`DriveState::Run`] (the recording stores the drive's own state
+/// codes).
+pub const STATE_RUN: i32 = DriveState::Run.code() as i32;
 
 /// Output word of the drive case holding the state after the step.
 pub const DRIVE_STATE_WORD: usize = 6;
@@ -220,7 +208,7 @@ pub const DRIVE_STATE_WORD: usize = 6;
 ///
 /// Inputs (5 words): `i_a, i_b, i_c, v_dc, ω*` (Q8.24). Outputs (7 words): duties `a, b, c`
 /// (Q2.30), `pwm_on` (0/1), `θ̂` (turn), `ω̂` (Q8.24), the state after the step
-/// ([`state_code`]).
+/// ([`DriveState::code`]).
 pub struct DriveCase(pub Drive);
 
 impl DriveCase {
@@ -251,7 +239,7 @@ impl Case for DriveCase {
         let e = self.0.telemetry().estimate;
         set_word(o, 4, e.theta.0);
         set_word(o, 5, e.omega.to_bits());
-        set_word(o, DRIVE_STATE_WORD, state_code(self.0.state()));
+        set_word(o, DRIVE_STATE_WORD, i32::from(self.0.state().code()));
     }
 }
 
@@ -264,7 +252,7 @@ pub const CLOSED_LOOP_CHUNK: usize = 25;
 /// at 540 V and 14 kHz, 12-bit ADC, the current-model MRAS; the speed reference ramps at
 /// 4000 r/min/s. One recorded step is [`CLOSED_LOOP_CHUNK`] drive steps; no inputs.
 ///
-/// Outputs (8 words) after each chunk: the drive state ([`state_code`]), `θ̂` (turn), `ω̂`
+/// Outputs (8 words) after each chunk: the drive state ([`DriveState::code`]), `θ̂` (turn), `ω̂`
 /// (Q8.24), the duty of leg a (Q2.30), and the plant's mechanical speed and electrical angle
 /// as the two halves of their `f64` bits: the float model must agree to the bit too (`libm`
 /// on both sides, IEEE basic operations, no fused multiply–adds).
@@ -371,7 +359,7 @@ impl Case for ClosedLoopCase {
             if self.failed {
                 -1
             } else {
-                state_code(self.drive.state())
+                i32::from(self.drive.state().code())
             },
         );
         set_word(o, 1, e.theta.0);

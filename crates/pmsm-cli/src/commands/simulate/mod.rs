@@ -40,6 +40,10 @@ pub struct Args {
     /// Also draw speed, angle error and currents to this SVG file.
     #[arg(long, value_name = "out.svg")]
     pub plot: Option<PathBuf>,
+    /// If the drive trips, write the fault recorder's samples before the fault to this CSV
+    /// (the input of `pmsm observe`; see `fault_dump`).
+    #[arg(long, value_name = "FILE")]
+    pub fault_dump: Option<PathBuf>,
 }
 
 /// Runs `pmsm simulate`.
@@ -49,6 +53,11 @@ pub fn run(args: &Args) -> Result<()> {
     output::write_csv(&args.output, &result.rows)?;
     report::print_summary(&sc, &result);
     println!("  output     {}", args.output.display());
+    super::fault_dump::write_if_faulted(
+        args.fault_dump.as_deref(),
+        &result.recorder,
+        &result.rows,
+    )?;
     if let Some(path) = &args.plot {
         draw(path, &sc, &result.rows)?;
         println!("  plot       {}", path.display());

@@ -71,6 +71,8 @@ pub struct Run {
     pub rows: Vec<Row>,
     /// Detected initial angle and true one, degrees, when the start-up was `ipd`.
     pub ipd: Option<(f64, f64)>,
+    /// The fault recorder, fed after each step.
+    pub recorder: super::super::fault_dump::Recorder,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -103,11 +105,13 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
     };
     let mut ipd = None;
     let mut injector = Injector::new(&sc.faults);
+    let mut recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
     setup.drive.start();
     for k in 0..n {
         let t = k as f64 / setup.sample_hz;
         let speed_ref_rpm = sc.speed_ref.at(t);
-        let out = control_step(&mut setup, speed_ref_rpm, &sensed);
+        let (input, out) = control_step(&mut setup, speed_ref_rpm, &sensed);
+        recorder.record(k, &setup.drive, &input);
         if ipd.is_none() {
             ipd = ipd_detected(&setup.drive, &plant);
         }
@@ -119,11 +123,19 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         advance_plant(&mut plant, &out, load_nm, setup.pwm_per_sample, &mut sensed)
             .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
     }
-    Ok(Run { rows, ipd })
+    Ok(Run {
+        rows,
+        ipd,
+        recorder,
+    })
 }
 
-/// One drive step on what the sensors read, towards `speed_ref_rpm`.
-fn control_step(setup: &mut DriveSetup, speed_ref_rpm: f64, sensed: &Sensed) -> DriveOutput {
+/// One drive step on what the sensors read, towards `speed_ref_rpm`: its input and output.
+fn control_step(
+    setup: &mut DriveSetup,
+    speed_ref_rpm: f64,
+    sensed: &Sensed,
+) -> (DriveInput, DriveOutput) {
     let base = &setup.base;
     let p = setup.model.p();
     setup
@@ -138,7 +150,7 @@ fn control_step(setup: &mut DriveSetup, speed_ref_rpm: f64, sensed: &Sensed) -> 
         },
         vdc: base.voltage_pu(sensed.vdc_v),
     };
-    setup.drive.step(&input)
+    (input, setup.drive.step(&input))
 }
 
 /// The detected initial angle and the plant's true one, degrees in [0, 360), once the initial

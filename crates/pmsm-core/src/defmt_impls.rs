@@ -1,0 +1,170 @@
+//! `defmt::Format` for the types that hold fixed-point words (feature `defmt`).
+//!
+//! The other public value types derive it. These are written by hand because `fixed`'s own
+//! defmt support formats through `core::fmt` on the target (several KiB of flash and panic
+//! paths in a firmware image); here every fixed-point field goes out as an `f32` that the
+//! host formats (`{=f32}`: four bytes on the wire, one conversion on the target), angles as
+//! their integer turn word, so a log costs what defmt is meant to cost.
+
+use defmt::{Format, Formatter, write};
+
+use crate::angle::SinCos;
+use crate::drive::{DriveInput, Fault};
+use crate::frames::{Abc, AlphaBeta, Dq};
+use crate::ipd::{IpdFault, IpdResult};
+use crate::num::{Pu, Unit};
+use crate::observer::Estimate;
+use crate::recorder::FaultSample;
+use crate::svpwm::Duties;
+
+fn pu(x: Pu) -> f32 {
+    x.to_num()
+}
+
+fn unit(x: Unit) -> f32 {
+    x.to_num()
+}
+
+impl Format for Fault {
+    fn format(&self, f: Formatter<'_>) {
+        match *self {
+            Fault::OverCurrent(i) => write!(f, "overcurrent ({=f32} pu)", pu(i)),
+            Fault::BusUnderVoltage(v) => write!(f, "bus_undervoltage ({=f32} pu)", pu(v)),
+            Fault::BusOverVoltage(v) => write!(f, "bus_overvoltage ({=f32} pu)", pu(v)),
+            Fault::InitialPosition(e) => write!(f, "initial_position ({})", e),
+            Fault::Handover(theta, w) => write!(
+                f,
+                "handover (θ {=i32} turn/2^32, ω {=f32} pu)",
+                theta.0,
+                pu(w)
+            ),
+            Fault::CurrentSensor(phase) => write!(f, "current_sensor (phase {})", phase),
+            Fault::PhaseLoss(phase) => write!(f, "phase_loss (phase {=u8})", phase),
+            Fault::Stall => write!(f, "stall"),
+            Fault::LossOfLock => write!(f, "loss_of_lock"),
+            Fault::Overrun => write!(f, "overrun"),
+        }
+    }
+}
+
+impl Format for IpdFault {
+    fn format(&self, f: Formatter<'_>) {
+        match *self {
+            IpdFault::OverCurrent(i) => write!(f, "overcurrent ({=f32} pu)", pu(i)),
+            IpdFault::NoCurrent(i) => write!(f, "no_current ({=f32} pu)", pu(i)),
+            IpdFault::LowSaliency { modulation, sum } => write!(
+                f,
+                "low_saliency (modulation {=f32}, sum {=f32} pu)",
+                pu(modulation),
+                pu(sum)
+            ),
+            IpdFault::NoPolarity { along, opposite } => write!(
+                f,
+                "no_polarity (along {=f32}, opposite {=f32} pu)",
+                pu(along),
+                pu(opposite)
+            ),
+            IpdFault::BusLow => write!(f, "bus_low"),
+        }
+    }
+}
+
+impl Format for IpdResult {
+    fn format(&self, f: Formatter<'_>) {
+        let [a, b, c, d, e] = self.peaks.map(pu);
+        write!(
+            f,
+            "IpdResult {{ θ {=i32}, sector {=u8}, θ mod π {=i32}, peaks [{=f32}, {=f32}, {=f32}, {=f32}, {=f32}] pu }}",
+            self.theta.0, self.sector, self.theta_mod_pi.0, a, b, c, d, e
+        )
+    }
+}
+
+impl Format for Abc {
+    fn format(&self, f: Formatter<'_>) {
+        write!(
+            f,
+            "abc({=f32}, {=f32}, {=f32})",
+            pu(self.a),
+            pu(self.b),
+            pu(self.c)
+        )
+    }
+}
+
+impl Format for AlphaBeta {
+    fn format(&self, f: Formatter<'_>) {
+        write!(f, "αβ({=f32}, {=f32})", pu(self.alpha), pu(self.beta))
+    }
+}
+
+impl Format for Dq {
+    fn format(&self, f: Formatter<'_>) {
+        write!(f, "dq({=f32}, {=f32})", pu(self.d), pu(self.q))
+    }
+}
+
+impl Format for SinCos {
+    fn format(&self, f: Formatter<'_>) {
+        write!(
+            f,
+            "SinCos {{ sin {=f32}, cos {=f32} }}",
+            unit(self.sin),
+            unit(self.cos)
+        )
+    }
+}
+
+impl Format for Estimate {
+    fn format(&self, f: Formatter<'_>) {
+        write!(
+            f,
+            "Estimate {{ θ {=i32}, ω {=f32}, emf {} }}",
+            self.theta.0,
+            pu(self.omega),
+            self.emf
+        )
+    }
+}
+
+impl Format for DriveInput {
+    fn format(&self, f: Formatter<'_>) {
+        write!(
+            f,
+            "DriveInput {{ i {}, vdc {=f32} }}",
+            self.i_abc,
+            pu(self.vdc)
+        )
+    }
+}
+
+impl Format for Duties {
+    fn format(&self, f: Formatter<'_>) {
+        write!(
+            f,
+            "duties({=f32}, {=f32}, {=f32})",
+            unit(self.a),
+            unit(self.b),
+            unit(self.c)
+        )
+    }
+}
+
+/// The raw words (bit-exact replay on the host), in the recorder's field order.
+impl Format for FaultSample {
+    fn format(&self, f: Formatter<'_>) {
+        write!(
+            f,
+            "i {=i32} {=i32} {=i32} vdc {=i32} v {=i32} {=i32} θ {=i32} ω {=i32} state {=u8}",
+            self.i_abc.a.to_bits(),
+            self.i_abc.b.to_bits(),
+            self.i_abc.c.to_bits(),
+            self.vdc.to_bits(),
+            self.v.alpha.to_bits(),
+            self.v.beta.to_bits(),
+            self.estimate.theta.0,
+            self.estimate.omega.to_bits(),
+            self.state
+        )
+    }
+}
