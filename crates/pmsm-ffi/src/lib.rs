@@ -17,11 +17,27 @@
 #[cfg(not(target_os = "none"))]
 extern crate std;
 
-mod api;
 mod convert;
+mod drive;
+mod handle;
+mod read;
+mod scale;
+mod types;
 
-pub use api::*;
 pub use convert::{fault_code, state_code};
+pub use drive::*;
+pub use handle::pmsm_drive_t;
+pub use read::*;
+pub use scale::*;
+pub use types::*;
+
+#[cfg(not(any(
+    feature = "mras-current",
+    feature = "nlo",
+    feature = "ao",
+    feature = "mras-emf"
+)))]
+compile_error!("pmsm-ffi needs at least one estimator feature: mras-current, nlo, ao, mras-emf");
 
 /// The panic handler of the bare-metal static library. Nothing in the library panics on
 /// purpose (the core has no panic paths on the control path and every argument is checked);
