@@ -30,8 +30,55 @@ const HEADER: &str = "\
  *   preloaded compare registers before the timer's next update event.
  */";
 
+/// FNV-1a, 32 bits.
+fn fnv(hash: u32, bytes: &[u8]) -> u32 {
+    bytes
+        .iter()
+        .fold(hash, |h, &b| (h ^ u32::from(b)).wrapping_mul(0x0100_0193))
+}
+
+/// Every `.rs` file under `dir`, sorted.
+fn sources(dir: &std::path::Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            sources(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+    out.sort();
+}
+
+/// The build id of the drive images (`src/image.rs`): a hash of the sources of pmsm-core and
+/// pmsm-ffi, the compiler's version and the estimator features, the things that decide the
+/// drive's memory layout and contents besides the target.
+fn build_id(dir: &std::path::Path) -> u32 {
+    let mut files = Vec::new();
+    sources(&dir.join("src"), &mut files);
+    sources(&dir.join("../pmsm-core/src"), &mut files);
+    let mut h = 0x811C_9DC5;
+    for f in &files {
+        h = fnv(h, std::fs::read(f).unwrap_or_default().as_slice());
+    }
+    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    if let Ok(v) = std::process::Command::new(rustc).arg("-V").output() {
+        h = fnv(h, &v.stdout);
+    }
+    for feature in ["MRAS_CURRENT", "NLO", "AO", "MRAS_EMF"] {
+        let on = std::env::var_os(format!("CARGO_FEATURE_{feature}")).is_some();
+        h = fnv(h, &[u8::from(on)]);
+    }
+    h
+}
+
 fn main() {
     let dir = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("CARGO_MANIFEST_DIR"));
+    println!("cargo:rerun-if-changed=../pmsm-core/src");
+    println!("cargo:rustc-env=PMSM_FFI_BUILD_ID={:08x}", build_id(&dir));
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("OUT_DIR")).join("pmsm.h");
     println!("cargo:rerun-if-changed=src");
     println!("cargo:rerun-if-changed=build.rs");

@@ -30,6 +30,16 @@
 #include <stdint.h>
 
 /**
+ * "PMIG", the first word of an image (little-endian).
+ */
+#define PMSM_IMAGE_MAGIC 1195986256
+
+/**
+ * Bytes of the image header: magic, build id, payload size, CRC-32 of the payload.
+ */
+#define PMSM_IMAGE_HEADER_SIZE 16
+
+/**
  * Size of static storage that holds a drive on every supported target, bytes. The C
  * firmware can declare `static pmsm_storage_t storage;` (`sizeof` = this, aligned to 8).
  */
@@ -86,6 +96,11 @@ enum pmsm_status_t
    * A controller or estimator gain is outside its stable, representable range.
    */
   PMSM_ERR_CONFIG_GAIN = -8,
+  /**
+   * The image passed to `pmsm_drive_init_image` was written by another build of the
+   * library (sources, compiler, estimator features), has another size, or is corrupted.
+   */
+  PMSM_ERR_IMAGE = -9,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -818,6 +833,42 @@ pmsm_status_t pmsm_set_speed_ref(pmsm_drive_t *drive, int32_t omega);
  * pointing to a writable `pmsm_output_t`.
  */
 pmsm_status_t pmsm_step(pmsm_drive_t *drive, const pmsm_input_t *input, pmsm_output_t *output);
+
+/**
+ * Bytes of the image of a drive of this library (`PMSM_IMAGE_HEADER_SIZE +
+ * pmsm_drive_size()`).
+ */
+size_t pmsm_image_size(void);
+
+/**
+ * Writes the image of `drive` as it is now (call it right after `pmsm_drive_init`, with the
+ * drive idle) into `image` of `len` bytes, for `pmsm_drive_init_image` on a target built from
+ * the same sources with the same estimator features. Returns the image's size
+ * (`pmsm_image_size()`); nothing is written when `len` is smaller. Returns 0 when `drive` is
+ * not a valid handle.
+ *
+ * # Safety
+ * `drive` as `pmsm_start`; `image` NULL or pointing to `len` writable bytes.
+ */
+size_t pmsm_drive_image(pmsm_drive_t *drive, void *image, size_t len);
+
+/**
+ * Builds a drive in caller-provided `storage` of `len` bytes (as `pmsm_drive_init`) from an
+ * `image` of `image_len` bytes written by `pmsm_drive_image`, and writes the handle to
+ * `*drive`. No floating point and no design code: the firmware links only this and the
+ * per-sample path. Returns `PMSM_ERR_IMAGE` for an image of another build of the library
+ * (sources, compiler or estimator features), of another size, or corrupted (CRC); nothing is
+ * written to the storage then.
+ *
+ * # Safety
+ * `storage` as in `pmsm_drive_init`; `image` NULL or pointing to `image_len` readable bytes;
+ * `drive` NULL or pointing to a writable pointer.
+ */
+pmsm_status_t pmsm_drive_init_image(void *storage,
+                                    size_t len,
+                                    const void *image,
+                                    size_t image_len,
+                                    pmsm_drive_t **drive);
 
 /**
  * The state and the latched fault.

@@ -49,6 +49,9 @@ pub extern "C" fn pmsm_status_message(status: i32) -> *const c_char {
         x if x == PMSM_ERR_CONFIG_GAIN as i32 => {
             c"a gain is outside its stable, representable range"
         }
+        x if x == PMSM_ERR_IMAGE as i32 => {
+            c"the drive image is of another library build or size, or corrupted"
+        }
         _ => c"unknown status code",
     };
     s.as_ptr()

@@ -32,6 +32,9 @@ pub enum pmsm_status_t {
     PMSM_ERR_CONFIG_ENVELOPE = -7,
     /// A controller or estimator gain is outside its stable, representable range.
     PMSM_ERR_CONFIG_GAIN = -8,
+    /// The image passed to `pmsm_drive_init_image` was written by another build of the
+    /// library (sources, compiler, estimator features), has another size, or is corrupted.
+    PMSM_ERR_IMAGE = -9,
 }
 
 /// The drive's rotor-position estimator (`pmsm_config_t.estimator`).

@@ -211,6 +211,7 @@ impl DriveConfig {
         design: DriveDesign,
     ) -> Result<Self, ConfigError> {
         let base = PerUnit::new(motor, inverter, sample_hz)?;
+        #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
         let g = design.observer_gain_rad_s;
         let estimator = match design.estimator {
             #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
