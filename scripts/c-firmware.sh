@@ -150,7 +150,7 @@ for cfg in "${configs[@]}"; do
       "estimators=$name init=$init"
   done
 done
-say "size (flash = text+data, ram = data+bss; init=image counts the image in flash)"
+echo "(size: flash = text+data, ram = data+bss; init=image counts the image in flash)"
 
 if [ $fail = 0 ]; then say PASS; else say FAIL; fi
 exit $fail
