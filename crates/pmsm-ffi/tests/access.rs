@@ -375,3 +375,79 @@ fn integer_fields_out_of_range_name_the_range() {
     let m = message(&c);
     assert!(m.contains("pole_pairs") && m.contains('1'), "{m}");
 }
+
+#[test]
+fn a_negative_current_scale_flips_the_sign() {
+    // An inverting amplifier: the code falls as current flows into the motor.
+    let mut s = storage();
+    let d = init(&mut s, &scenario::config_c()).expect("init");
+    let (mut pos, mut neg, mut b) = (
+        pmsm_scale_t::default(),
+        pmsm_scale_t::default(),
+        pmsm_bases_t::default(),
+    );
+    // SAFETY: live handle, valid out pointers.
+    unsafe {
+        assert_eq!(pmsm_get_bases(d, &mut b), pmsm_status_t::PMSM_OK);
+        assert_eq!(
+            pmsm_scale_current(d, 20.0 / 4096.0, &mut pos),
+            pmsm_status_t::PMSM_OK
+        );
+        assert_eq!(
+            pmsm_scale_current(d, -20.0 / 4096.0, &mut neg),
+            pmsm_status_t::PMSM_OK
+        );
+    }
+    assert!(neg.gain < 0 && neg.shift == pos.shift, "{neg:?} {pos:?}");
+    for code in [-2048, -7, 1, 1000, 2047] {
+        let exact = -(code as f64) * 20.0 / 4096.0 / b.current_a * (1 << 24) as f64;
+        // SAFETY: valid scale pointer.
+        let got = unsafe { pmsm_scale_apply(&neg, code) } as f64;
+        assert!((got - exact).abs() <= 1.0, "{code}: {got} vs {exact}");
+    }
+}
+
+#[test]
+fn a_drive_without_ipd_start_refuses_to_pulse_if_forced_to() {
+    use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, StartupMode};
+    use pmsm_core::observer::EstimatorKind;
+    use pmsm_core::{InverterParams, PerUnit};
+    // Motor B on 48 V: its IPD design is not reachable, and not checked for an ALIGN start.
+    let m = scenario::motor_b();
+    let mut m = m;
+    m.rated_speed_rpm = None;
+    let inv = InverterParams {
+        vdc_v: 48.0,
+        ..scenario::inverter_b()
+    };
+    let base = PerUnit::new(&m, &inv, 14_000.0).expect("bases");
+    let mut design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
+    design.startup = StartupMode::Align;
+    let mut config = DriveConfig::new(&m, &inv, 14_000.0, design).expect("ALIGN on 48 V");
+    // Forced to IPD after the check: the unchecked detector stops at its first pulse.
+    config.design.startup = StartupMode::Ipd;
+    let mut drive = Drive::new(config);
+    drive.start();
+    let input = DriveInput {
+        vdc: base.voltage_pu(48.0),
+        ..DriveInput::default()
+    };
+    let mut steps = 0;
+    while !matches!(drive.state(), DriveState::Fault(_)) && steps < 100 {
+        let out = drive.step(&input);
+        assert!(
+            !out.pwm_on || steps < 4,
+            "switching at step {steps} with an unchecked detector"
+        );
+        steps += 1;
+    }
+    assert!(
+        matches!(
+            drive.state(),
+            DriveState::Fault(Fault::InitialPosition(IpdFault::NoCurrent(_)))
+        ),
+        "{:?} after {steps} steps",
+        drive.state()
+    );
+    assert!(steps <= 4, "{steps} steps");
+}
