@@ -151,6 +151,25 @@ for cfg in "${configs[@]}"; do
   done
 done
 echo "(size: flash = text+data, ram = data+bss; init=image counts the image in flash)"
+# What the flash of the one-estimator firmware designed on the target is spent on.
+breakdown() {
+  local design=0 float=0 est=0 rest=0 size type name n
+  while read -r _ size type name; do
+    case $type in [bBdD]) continue ;; esac
+    n=$((16#$size))
+    case $name in
+      *Config::new* | *from_f64* | *validate* | *PerUnit::new* | *rise_time* | *coef_in* | \
+        *Gain::new* | *Coef*::new* | *default_for* | *convert::build* | pmsm_drive_init | \
+        *EmfMeter::new* | *Reciprocal* | *observer_pole*) design=$((design + n)) ;;
+      *compiler_builtins::float* | __aeabi_d* | __aeabi_f* | *libm* | *RSQRT*) float=$((float + n)) ;;
+      *mras_current* | *MrasCurrent* | *nlo::* | *Nlo*) est=$((est + n)) ;;
+      *) rest=$((rest + n)) ;;
+    esac
+  done < <(arm-none-eabi-nm --size-sort -S -C "$1" | grep -v ' main$')
+  say "flash of $2 design_code=$design soft_float_and_libm=$float estimator=$est" \
+    "per_sample_path_and_rest=$rest"
+}
+breakdown "$out/minimal-mras-current-design.elf" "mras-current init=design"
 
 if [ $fail = 0 ]; then say PASS; else say FAIL; fi
 exit $fail
