@@ -66,7 +66,8 @@ else
 fi
 
 # 3. The README's C snippets (between `<!-- c-snippet: NAME -->` and the next marker),
-# compiled and linked against pmsm.h and the host archive with stub registers.
+# compiled and linked against pmsm.h and the host archive with stub registers, and run: the
+# ISR must switch the outputs on at the first step of a start.
 snippet() {
   awk -v name="$1" '/^<!-- c-snippet: / { on = ($3 == name); next } on { sub(/^    /, ""); print }' \
     README.md
@@ -92,16 +93,20 @@ C
   echo '}'
   echo 'int main(void) {'
   snippet init
-  echo '    for (int k = 0; k < 10; k++) ADC1_2_IRQHandler();'
-  echo '    return (tim1.BDTR & TIM_BDTR_MOE) ? 0 : 0;'
+  # A nominal bus (540 V at 0.2 V per code), no current: the first detection pulse switches,
+  # so the ISR must have set the main output enable.
+  echo '    adc2.JDR1 = 2700;'
+  echo '    ADC1_2_IRQHandler();'
+  echo '    return (tim1.BDTR & TIM_BDTR_MOE) ? 0 : 1;'
   echo '}'
 } >"$out/readme.c"
 if [ "$(snippet isr | grep -c pmsm_step)" = 1 ] && [ "$(snippet init | grep -c pmsm_drive_init)" = 1 ] &&
   gcc -std=c11 -O2 -Wall -Wextra -Werror -I"$inc" -o "$out/readme" "$out/readme.c" \
     "$out/lib/host-default/libpmsm_ffi.a" "${host_libs[@]}" && "$out/readme"; then
-  say "readme snippets compiled=true"
+  say "readme snippets compiled=true outputs_on_at_start=true"
 else
-  say "readme snippets compiled=false ($out/readme.c)"; fail=1
+  say "readme snippets failed: not compiled, or the ISR left the outputs off ($out/readme.c)"
+  fail=1
 fi
 
 # 4. Cortex-M4 in QEMU: designed on the target, then loaded from the host's image.
