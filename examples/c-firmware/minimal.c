@@ -1,11 +1,21 @@
-/* The smallest firmware that uses the drive: init from a configuration, then one pmsm_step
- * per PWM interrupt (here a loop over a volatile "ADC"). Built with and without
- * -DWITH_PMSM to measure the flash and RAM the library adds (scripts/c-firmware.sh). */
+/* The smallest firmware that uses the drive: init, then one pmsm_step per PWM interrupt
+ * (here a loop over a volatile "ADC"). Built without -DWITH_PMSM, and with it, to measure the
+ * flash and RAM the library adds (scripts/c-firmware.sh). The drive is designed on the target
+ * from a configuration (pmsm_drive_init; -DESTIMATOR=<pmsm_estimator_t> picks the estimator),
+ * or with -DFROM_IMAGE loaded from a drive image written on the host (image.S,
+ * pmsm_drive_init_image), which links none of the design code. */
 #include <stdint.h>
 #ifdef WITH_PMSM
 #include "pmsm.h"
 static pmsm_storage_t storage;
 static pmsm_drive_t *drive;
+#ifdef FROM_IMAGE
+extern const unsigned char pmsm_image[];
+extern const unsigned char pmsm_image_end[];
+#endif
+#ifndef ESTIMATOR
+#define ESTIMATOR PMSM_ESTIMATOR_MRAS_CURRENT
+#endif
 #endif
 
 volatile int32_t adc[4];        /* stands for the ADC injected-conversion registers */
@@ -13,8 +23,14 @@ volatile uint16_t ccr[3];       /* stands for TIM1->CCR1..3 */
 
 int main(void) {
 #ifdef WITH_PMSM
+#ifdef FROM_IMAGE
+    if (pmsm_drive_init_image(&storage, sizeof storage, pmsm_image,
+                              (size_t)(pmsm_image_end - pmsm_image), &drive) != PMSM_OK)
+        return 1;
+#else
     pmsm_config_t c = {0};
     c.pole_pairs = 3;
+    c.estimator = ESTIMATOR;
     c.rs_ohm = 7.2;
     c.ld_h = 0.025025;
     c.lq_h = 0.04017;
@@ -27,6 +43,7 @@ int main(void) {
     c.dead_time_s = 2e-6;
     c.pwm_period_ticks = 3000;
     if (pmsm_drive_init(&storage, sizeof storage, &c, &drive) != PMSM_OK) return 1;
+#endif
     pmsm_start(drive);
 #endif
     for (int k = 0; k < 100; k++) {

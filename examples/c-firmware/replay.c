@@ -41,7 +41,27 @@ static void print_kv(replay_print_fn print, const char *k, int32_t v) {
     print(replay_itoa(v, b));
 }
 
-int replay_run(const int32_t *words, size_t n_words, replay_print_fn print, uint32_t *steps) {
+void replay_config(pmsm_config_t *c, uint32_t period_ticks) {
+    *c = (pmsm_config_t){0};
+    c->pole_pairs = 3;
+    c->estimator = PMSM_ESTIMATOR_MRAS_CURRENT;
+    c->startup = PMSM_STARTUP_IPD;
+    c->pwm_period_ticks = period_ticks;
+    c->rs_ohm = 7.2;
+    c->ld_h = 0.025025;
+    c->lq_h = 0.04017;
+    c->flux_wb = 0.305;
+    c->j_kg_m2 = 0.0036;
+    c->b_nm_s = 0.0011;
+    c->rated_current_a = 2.53;
+    c->rated_speed_rpm = 3000.0;
+    c->vdc_v = 540.0;
+    c->pwm_hz = 14000.0;
+    c->dead_time_s = 2e-6;
+}
+
+int replay_run(const int32_t *words, size_t n_words, const void *image, size_t image_len,
+               replay_print_fn print, uint32_t *steps) {
     *steps = 0;
     if (n_words < 5 || words[0] != MAGIC || words[1] != VERSION || words[3] != WORDS) {
         print("replay: not a recording (magic, version or word count)\n");
@@ -53,29 +73,16 @@ int replay_run(const int32_t *words, size_t n_words, replay_print_fn print, uint
         return -1;
     }
 
-    pmsm_config_t c = {0};
-    c.pole_pairs = 3;
-    c.estimator = PMSM_ESTIMATOR_MRAS_CURRENT;
-    c.startup = PMSM_STARTUP_IPD;
-    c.pwm_period_ticks = (uint32_t)words[4];
-    c.rs_ohm = 7.2;
-    c.ld_h = 0.025025;
-    c.lq_h = 0.04017;
-    c.flux_wb = 0.305;
-    c.j_kg_m2 = 0.0036;
-    c.b_nm_s = 0.0011;
-    c.rated_current_a = 2.53;
-    c.rated_speed_rpm = 3000.0;
-    c.vdc_v = 540.0;
-    c.pwm_hz = 14000.0;
-    c.dead_time_s = 2e-6;
-
+    pmsm_config_t c;
+    replay_config(&c, (uint32_t)words[4]);
     pmsm_drive_t *drive = 0;
-    pmsm_status_t st = pmsm_drive_init(&storage, sizeof storage, &c, &drive);
+    pmsm_status_t st = image
+        ? pmsm_drive_init_image(&storage, sizeof storage, image, image_len, &drive)
+        : pmsm_drive_init(&storage, sizeof storage, &c, &drive);
     if (st != PMSM_OK) {
         char msg[160];
         pmsm_config_error_message(&c, msg, sizeof msg);
-        print("replay: pmsm_drive_init: ");
+        print(image ? "replay: pmsm_drive_init_image: " : "replay: pmsm_drive_init: ");
         print(pmsm_status_message(st));
         print(": ");
         print(msg);

@@ -7,10 +7,17 @@ use std::process::Command;
 pub fn section() -> String {
     let mut s = String::from(
         "## The C static library in a C firmware\n\n\
-         `scripts/c-firmware.sh` builds `libpmsm_ffi.a` for `thumbv7em-none-eabihf`, links it into a \
-         minimal C firmware with `arm-none-eabi-gcc -O2 --gc-sections` (init and one `pmsm_step` per \
-         interrupt), replays a recorded drive run from C on the host and on a Cortex-M4 in QEMU, \
-         and compares every output with the Rust drive's.\n\n",
+         `scripts/c-firmware.sh` builds `libpmsm_ffi.a` with `crates/pmsm-ffi/archive.sh` (every \
+         symbol but `pmsm_*` hidden) for the host and `thumbv7em-none-eabihf`, replays a recorded \
+         drive run from C on the host and on a Cortex-M4 in QEMU (the drive designed on the target, \
+         and loaded from a drive image written on the host) and compares every output with the \
+         Rust drive's, compiles the README's C snippets, and links a minimal C firmware with \
+         `arm-none-eabi-gcc -O2 --gc-sections` (init and one `pmsm_step` per interrupt) for three \
+         estimator selections (all four, `mras-current` only, `nlo` only), the drive designed on the \
+         target (`init=design`: `pmsm_drive_init`, double-precision software floating point) or \
+         loaded from an image (`init=image`: `pmsm_drive_init_image`, the image counted in \
+         flash). Flash = text + data, RAM = data + bss, added to the firmware without the \
+         library.\n\n",
     );
     let out = Command::new("bash")
         .arg(super::root().join("scripts/c-firmware.sh"))

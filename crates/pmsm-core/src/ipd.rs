@@ -233,6 +233,26 @@ impl IpdConfig {
         })
     }
 
+    /// The configuration of a drive that does not start by IPD: nothing of `design` is checked
+    /// (its pulses need not be reachable on this motor and bus). Should a detection run on it
+    /// anyway, its zero current limit stops it at the first sample with
+    /// [`IpdFault::OverCurrent`] or, with no current at all, [`IpdFault::NoCurrent`].
+    pub(crate) fn unused(design: IpdDesign) -> Self {
+        Self {
+            n_short: 2,
+            n_long: 2,
+            n_off: 2,
+            v_p: Pu::ZERO,
+            i_limit: Pu::ZERO,
+            i_short_min: Pu::MAX,
+            saliency_k: Gain::ZERO,
+            polarity_k: Gain::ZERO,
+            inverse_saliency: false,
+            svpwm: SvpwmConfig::default(),
+            design,
+        }
+    }
+
     /// Control samples the whole sequence takes (if it does not stop early).
     pub fn total_samples(&self) -> u32 {
         3 * (2 * self.n_short + self.n_off) + 2 * (2 * self.n_long + self.n_off)

@@ -1,21 +1,28 @@
 //! From the C configuration to the core's types, and from the core's states and faults to the
 //! C codes. Safe Rust only.
 
-use crate::api::{
-    pmsm_config_t, pmsm_deadtime_t, pmsm_estimator_t, pmsm_fault_t, pmsm_startup_t, pmsm_state_t,
-    pmsm_status_t,
+use crate::types::{
+    pmsm_config_t, pmsm_deadtime_t, pmsm_estimator_t, pmsm_startup_t, pmsm_status_t,
 };
 use core::f64::consts::TAU;
 use pmsm_core::deadtime::DeadTimeMode;
 use pmsm_core::drive::{DriveConfig, DriveDesign, DriveState, Fault, StartupMode};
+use pmsm_core::ipd::IpdFault;
 use pmsm_core::observer::EstimatorKind;
 use pmsm_core::{Angle, ConfigError, InverterParams, MotorParams, PerUnit};
 
 /// Why a configuration was rejected.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Rejected {
-    /// An enumerated code out of range (the field is named).
-    Code(&'static str),
+    /// An integer field outside its range: the field, its value and the accepted range.
+    Range {
+        field: &'static str,
+        value: u32,
+        allowed: &'static str,
+    },
+    /// An estimator this library was built without: the field's value and the cargo feature
+    /// of pmsm-ffi that builds it in.
+    NotBuilt { value: u32, feature: &'static str },
     /// The core rejected it.
     Config(ConfigError),
 }
@@ -23,7 +30,9 @@ pub(crate) enum Rejected {
 impl Rejected {
     pub(crate) fn status(&self) -> pmsm_status_t {
         match self {
-            Rejected::Code(_) => pmsm_status_t::PMSM_ERR_INVALID_ARGUMENT,
+            Rejected::Range { .. } | Rejected::NotBuilt { .. } => {
+                pmsm_status_t::PMSM_ERR_INVALID_ARGUMENT
+            }
             Rejected::Config(ConfigError::Param(_)) => pmsm_status_t::PMSM_ERR_CONFIG_PARAM,
             Rejected::Config(ConfigError::OutOfEnvelope { .. }) => {
                 pmsm_status_t::PMSM_ERR_CONFIG_ENVELOPE
@@ -36,7 +45,16 @@ impl Rejected {
 impl core::fmt::Display for Rejected {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Rejected::Code(field) => write!(f, "`{field}` is not one of its enumerated values"),
+            Rejected::Range {
+                field,
+                value,
+                allowed,
+            } => write!(f, "`{field}` is {value}; it must be in {allowed}"),
+            Rejected::NotBuilt { value, feature } => write!(
+                f,
+                "`estimator` {value} is not built into this library: build pmsm-ffi with the \
+                 cargo feature `{feature}`"
+            ),
             Rejected::Config(e) => e.fmt(f),
         }
     }
@@ -88,15 +106,7 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
     motor.validate().map_err(ConfigError::Param)?;
     inverter.validate().map_err(ConfigError::Param)?;
 
-    let estimator = match c.estimator {
-        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_MRAS_CURRENT as u32 => {
-            EstimatorKind::MrasCurrent
-        }
-        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_NLO as u32 => EstimatorKind::Nlo,
-        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_AO as u32 => EstimatorKind::Ao,
-        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_MRAS_EMF as u32 => EstimatorKind::MrasEmf,
-        _ => return Err(Rejected::Code("estimator")),
-    };
+    let estimator = estimator(c.estimator)?;
     let mut design = DriveDesign::default_for(&motor, &inverter, &base, estimator);
     design.startup = match c.startup {
         x if x == pmsm_startup_t::PMSM_STARTUP_DEFAULT as u32 => design.startup,
@@ -105,7 +115,13 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
         x if x == pmsm_startup_t::PMSM_STARTUP_KNOWN as u32 => {
             StartupMode::Known(Angle(c.startup_angle))
         }
-        _ => return Err(Rejected::Code("startup")),
+        x => {
+            return Err(Rejected::Range {
+                field: "startup",
+                value: x,
+                allowed: "0 to 3 (DEFAULT, IPD, ALIGN, KNOWN)",
+            });
+        }
     };
     design.deadtime.mode = match c.deadtime_compensation {
         x if x == pmsm_deadtime_t::PMSM_DEADTIME_DEFAULT as u32 => design.deadtime.mode,
@@ -113,7 +129,13 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
         x if x == pmsm_deadtime_t::PMSM_DEADTIME_COMMAND as u32 => DeadTimeMode::Command,
         x if x == pmsm_deadtime_t::PMSM_DEADTIME_ESTIMATOR as u32 => DeadTimeMode::Estimator,
         x if x == pmsm_deadtime_t::PMSM_DEADTIME_BOTH as u32 => DeadTimeMode::Both,
-        _ => return Err(Rejected::Code("deadtime_compensation")),
+        x => {
+            return Err(Rejected::Range {
+                field: "deadtime_compensation",
+                value: x,
+                allowed: "0 to 4 (DEFAULT, OFF, COMMAND, ESTIMATOR, BOTH)",
+            });
+        }
     };
     if let Some(g) = given(c.observer_gain_rad_s) {
         design.observer_gain_rad_s = g;
@@ -128,8 +150,11 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
         design.speed.current_limit_a = a;
         design.open_loop.current_a = design.open_loop.current_a.min(a);
     }
-    let period =
-        u16::try_from(c.pwm_period_ticks).map_err(|_| Rejected::Code("pwm_period_ticks"))?;
+    let period = u16::try_from(c.pwm_period_ticks).map_err(|_| Rejected::Range {
+        field: "pwm_period_ticks",
+        value: c.pwm_period_ticks,
+        allowed: "0 to 65535",
+    })?;
     let config = DriveConfig::new(&motor, &inverter, sample_hz, design)?;
     Ok(Built {
         config,
@@ -138,36 +163,79 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
     })
 }
 
-/// The C code of a state.
-pub fn state_code(s: &DriveState) -> pmsm_state_t {
-    #[allow(unreachable_patterns)] // states added to the core later map to OTHER
-    match s {
-        DriveState::Idle => pmsm_state_t::PMSM_STATE_IDLE,
-        DriveState::Ipd => pmsm_state_t::PMSM_STATE_IPD,
-        DriveState::Align => pmsm_state_t::PMSM_STATE_ALIGN,
-        DriveState::OpenLoop => pmsm_state_t::PMSM_STATE_OPEN_LOOP,
-        DriveState::Run => pmsm_state_t::PMSM_STATE_RUN,
-        DriveState::Fault(_) => pmsm_state_t::PMSM_STATE_FAULT,
-        _ => pmsm_state_t::PMSM_STATE_OTHER,
+/// The estimator of a `pmsm_estimator_t` code, if this library was built with it.
+fn estimator(code: u32) -> Result<EstimatorKind, Rejected> {
+    let (kind, built, feature) = match code {
+        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_MRAS_CURRENT as u32 => (
+            EstimatorKind::MrasCurrent,
+            cfg!(feature = "mras-current"),
+            "mras-current",
+        ),
+        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_NLO as u32 => {
+            (EstimatorKind::Nlo, cfg!(feature = "nlo"), "nlo")
+        }
+        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_AO as u32 => {
+            (EstimatorKind::Ao, cfg!(feature = "ao"), "ao")
+        }
+        x if x == pmsm_estimator_t::PMSM_ESTIMATOR_MRAS_EMF as u32 => (
+            EstimatorKind::MrasEmf,
+            cfg!(feature = "mras-emf"),
+            "mras-emf",
+        ),
+        x => {
+            return Err(Rejected::Range {
+                field: "estimator",
+                value: x,
+                allowed: "0 to 3 (MRAS_CURRENT, NLO, AO, MRAS_EMF)",
+            });
+        }
+    };
+    if built {
+        Ok(kind)
+    } else {
+        Err(Rejected::NotBuilt {
+            value: code,
+            feature,
+        })
     }
 }
 
-/// The C code of the fault of a state ([`pmsm_fault_t::PMSM_FAULT_NONE`] outside `Fault`),
-/// and its value: Q8.24 per unit for the current and bus faults, the angle difference (turn,
-/// 2^32) for the handover, 0 otherwise.
-pub fn fault_code(s: &DriveState) -> (pmsm_fault_t, i32) {
-    let DriveState::Fault(f) = s else {
-        return (pmsm_fault_t::PMSM_FAULT_NONE, 0);
+/// The C code of a state (a `pmsm_state_t`): the core's [`DriveState::code`].
+pub fn state_code(s: &DriveState) -> u32 {
+    u32::from(s.code())
+}
+
+/// The C code of the fault of a state (a `pmsm_fault_t`: the core's
+/// [`DriveState::fault_code`], 0 outside `Fault`) and its value (see `pmsm_fault_t`).
+pub fn fault_code(s: &DriveState) -> (u32, i32) {
+    let value = match s {
+        DriveState::Fault(f) => match f {
+            Fault::OverCurrent(x) | Fault::BusUnderVoltage(x) | Fault::BusOverVoltage(x) => {
+                x.to_bits()
+            }
+            Fault::InitialPosition(e) => i32::from(e.code()),
+            Fault::Handover(a, _) => a.0,
+            Fault::CurrentSensor(ch) => ch.map_or(-1, i32::from),
+            Fault::PhaseLoss(ph) => i32::from(*ph),
+            Fault::Stall | Fault::LossOfLock | Fault::Overrun => 0,
+        },
+        _ => 0,
     };
-    #[allow(unreachable_patterns)] // faults added to the core later map to OTHER
-    match f {
-        Fault::OverCurrent(x) => (pmsm_fault_t::PMSM_FAULT_OVERCURRENT, x.to_bits()),
-        Fault::BusUnderVoltage(x) => (pmsm_fault_t::PMSM_FAULT_BUS_UNDERVOLTAGE, x.to_bits()),
-        Fault::BusOverVoltage(x) => (pmsm_fault_t::PMSM_FAULT_BUS_OVERVOLTAGE, x.to_bits()),
-        Fault::InitialPosition(_) => (pmsm_fault_t::PMSM_FAULT_INITIAL_POSITION, 0),
-        Fault::Handover(a, _) => (pmsm_fault_t::PMSM_FAULT_HANDOVER, a.0),
-        _ => (pmsm_fault_t::PMSM_FAULT_OTHER, 0),
-    }
+    (u32::from(s.fault_code()), value)
+}
+
+/// The C code and measurements of the IPD check that failed, if the drive is in that fault.
+pub(crate) fn ipd_fault(s: &DriveState) -> (u32, [i32; 2]) {
+    let DriveState::Fault(Fault::InitialPosition(e)) = s else {
+        return (0, [0, 0]);
+    };
+    let v = match e {
+        IpdFault::OverCurrent(x) | IpdFault::NoCurrent(x) => [x.to_bits(), 0],
+        IpdFault::LowSaliency { modulation, sum } => [modulation.to_bits(), sum.to_bits()],
+        IpdFault::NoPolarity { along, opposite } => [along.to_bits(), opposite.to_bits()],
+        IpdFault::BusLow => [0, 0],
+    };
+    (u32::from(e.code()), v)
 }
 
 /// `core::fmt::Write` into a C buffer: truncates, keeps room for the terminating NUL, and

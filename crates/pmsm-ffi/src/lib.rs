@@ -9,6 +9,12 @@
 //! Units: configuration in SI doubles (once, at init); the per-sample [`pmsm_step`] is integer
 //! only: currents and bus voltage as `int32_t` Q8.24 per unit (`2^24` = 1 pu), duties as Q2.30
 //! fractions of the period (`2^30` = 1) and as timer compare values.
+//!
+//! Modules: `types` (the C types), `handle` (the opaque drive and the pointer checks), `drive`
+//! (init, commands, step), `read` (state, estimate, telemetry, initial position), `scale`
+//! (ADC conversions), `image` (drives built on the host, loaded without the design code),
+//! `convert` (C configuration and codes to and from the core). The cargo features
+//! `mras-current`, `nlo`, `ao`, `mras-emf` (default: all) select the estimators built in.
 #![no_std]
 #![allow(non_camel_case_types)]
 
@@ -17,11 +23,29 @@
 #[cfg(not(target_os = "none"))]
 extern crate std;
 
-mod api;
 mod convert;
+mod drive;
+mod handle;
+mod image;
+mod read;
+mod scale;
+mod types;
 
-pub use api::*;
 pub use convert::{fault_code, state_code};
+pub use drive::*;
+pub use handle::pmsm_drive_t;
+pub use image::*;
+pub use read::*;
+pub use scale::*;
+pub use types::*;
+
+#[cfg(not(any(
+    feature = "mras-current",
+    feature = "nlo",
+    feature = "ao",
+    feature = "mras-emf"
+)))]
+compile_error!("pmsm-ffi needs at least one estimator feature: mras-current, nlo, ao, mras-emf");
 
 /// The panic handler of the bare-metal static library. Nothing in the library panics on
 /// purpose (the core has no panic paths on the control path and every argument is checked);

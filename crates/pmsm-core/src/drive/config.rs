@@ -8,6 +8,7 @@ use crate::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode};
 use crate::error::ConfigError;
 use crate::ipd::{IpdConfig, IpdDesign};
 use crate::num::{Pu, pu_from_f64};
+#[cfg_attr(feature = "select-estimators", allow(unused_imports))]
 use crate::observer::{
     AnyEstimator, Ao, AoConfig, EstimatorKind, MrasCurrent, MrasCurrentConfig, MrasCurrentGains,
     MrasEmf, MrasEmfConfig, Nlo, NloConfig, default_observer_gain,
@@ -211,16 +212,31 @@ impl DriveConfig {
         design: DriveDesign,
     ) -> Result<Self, ConfigError> {
         let base = PerUnit::new(motor, inverter, sample_hz)?;
+        #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
         let g = design.observer_gain_rad_s;
         let estimator = match design.estimator {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             EstimatorKind::Nlo => AnyEstimator::Nlo(Nlo::new(NloConfig::new(motor, &base, g)?)),
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
             EstimatorKind::Ao => AnyEstimator::Ao(Ao::new(AoConfig::new(motor, &base, g)?)),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             EstimatorKind::MrasEmf => {
                 AnyEstimator::MrasEmf(MrasEmf::new(MrasEmfConfig::paper(motor, &base, g)?))
             }
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             EstimatorKind::MrasCurrent => AnyEstimator::MrasCurrent(MrasCurrent::new(
                 MrasCurrentConfig::new(motor, &base, design.mras_current)?,
             )),
+            #[allow(unreachable_patterns)] // every estimator is built without the feature
+            _ => {
+                return Err(crate::params::ParamError {
+                    key: "estimator",
+                    reason: crate::params::ParamReason::Inconsistent(
+                        "the estimators built in (feature select-estimators)",
+                    ),
+                }
+                .into());
+            }
         };
         let ol = design.open_loop;
         let ts = base.sample_s;
@@ -257,7 +273,11 @@ impl DriveConfig {
             },
             deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,
             svpwm: SvpwmConfig::default(),
-            ipd: IpdConfig::new(motor, &base, design.ipd)?,
+            // Only an IPD start-up needs pulses this motor and bus can drive.
+            ipd: match design.startup {
+                StartupMode::Ipd => IpdConfig::new(motor, &base, design.ipd)?,
+                _ => IpdConfig::unused(design.ipd),
+            },
             open_loop: OpenLoopConfig {
                 current: pu_from_f64(ol.current_a / base.current_a),
                 accel: pu_from_f64(ol.accel_rad_s2 * ts / base.omega_e_rad_s),

@@ -152,17 +152,22 @@ impl EstimatorKind {
 }
 
 /// Any estimator of the crate, without dynamic dispatch (no allocation, one concrete type
-/// for the drive and the C interface).
+/// for the drive and the C interface). With the feature `select-estimators`, only the
+/// variants whose features are on exist (the code of the others is not linked).
 #[derive(Clone, Copy, Debug)]
 #[allow(clippy::large_enum_variant)]
 pub enum AnyEstimator {
     /// See [`Nlo`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
     Nlo(Nlo),
     /// See [`Ao`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
     Ao(Ao),
     /// See [`MrasEmf`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
     MrasEmf(MrasEmf),
     /// See [`MrasCurrent`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
     MrasCurrent(MrasCurrent),
 }
 
@@ -170,9 +175,13 @@ impl AnyEstimator {
     /// Which one it is.
     pub fn kind(&self) -> EstimatorKind {
         match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             AnyEstimator::Nlo(_) => EstimatorKind::Nlo,
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
             AnyEstimator::Ao(_) => EstimatorKind::Ao,
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             AnyEstimator::MrasEmf(_) => EstimatorKind::MrasEmf,
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(_) => EstimatorKind::MrasCurrent,
         }
     }
@@ -196,6 +205,7 @@ impl AnyEstimator {
     /// (the current-model MRAS): see [`Frame`]. `None` for the others.
     pub fn frame(&self) -> Option<Frame> {
         match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(e) => {
                 let (sc, i_dq) = e.frame();
                 Some(Frame {
@@ -204,6 +214,7 @@ impl AnyEstimator {
                     sc_next: e.next_frame(),
                 })
             }
+            #[allow(unreachable_patterns)] // the only variant with `select-estimators`
             _ => None,
         }
     }
@@ -212,36 +223,52 @@ impl AnyEstimator {
 impl Estimator for AnyEstimator {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
         match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             AnyEstimator::Nlo(e) => e.update(input),
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
             AnyEstimator::Ao(e) => e.update(input),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             AnyEstimator::MrasEmf(e) => e.update(input),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(e) => e.update(input),
         }
     }
 
     fn estimate(&self) -> Estimate {
         match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             AnyEstimator::Nlo(e) => e.estimate(),
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
             AnyEstimator::Ao(e) => e.estimate(),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             AnyEstimator::MrasEmf(e) => e.estimate(),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(e) => e.estimate(),
         }
     }
 
     fn health(&self) -> Pu {
         match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             AnyEstimator::Nlo(e) => e.health(),
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
             AnyEstimator::Ao(e) => e.health(),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             AnyEstimator::MrasEmf(e) => e.health(),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(e) => e.health(),
         }
     }
 
     fn reset(&mut self, theta: Angle, omega: Pu) {
         match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             AnyEstimator::Nlo(e) => e.reset(theta, omega),
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
             AnyEstimator::Ao(e) => e.reset(theta, omega),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             AnyEstimator::MrasEmf(e) => e.reset(theta, omega),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(e) => e.reset(theta, omega),
         }
     }

@@ -1,0 +1,97 @@
+//! The opaque drive handle and the checked access to C pointers.
+//!
+//! Pointer contract of every function: a pointer argument is either null (the function
+//! returns an error) or points to valid memory of the documented type. Handles are checked for
+//! alignment and for the mark written at initialisation, so storage that was never
+//! initialised is refused, not used.
+#![allow(unsafe_code)]
+
+use crate::types::{PMSM_STORAGE_SIZE, PMSM_STORAGE_WORDS, pmsm_status_t};
+use core::mem::{align_of, size_of};
+use pmsm_core::drive::Drive;
+
+/// A drive, in caller-provided storage. Opaque to C.
+#[derive(Debug)]
+pub struct pmsm_drive_t {
+    pub(crate) mark: u32,
+    pub(crate) period: u16,
+    pub(crate) pole_pairs: u32,
+    pub(crate) drive: Drive,
+}
+
+pub(crate) const MARK: u32 = 0x504D_534D; // "PMSM"
+
+const _: () = assert!(PMSM_STORAGE_WORDS * 8 == PMSM_STORAGE_SIZE);
+const _: () = assert!(
+    size_of::<pmsm_drive_t>() <= PMSM_STORAGE_SIZE && align_of::<pmsm_drive_t>() <= 8,
+    "the drive outgrew PMSM_STORAGE_SIZE: raise it (and regenerate pmsm.h)"
+);
+
+pub(crate) fn aligned<T>(p: *const T) -> bool {
+    (p as usize).is_multiple_of(align_of::<T>())
+}
+
+/// A shared reference to `*p` if it is non-null and aligned.
+///
+/// # Safety
+/// `p` is null or points to a valid `T` (all bit patterns of the `T`s used here are valid).
+pub(crate) unsafe fn arg<'a, T>(p: *const T) -> Result<&'a T, pmsm_status_t> {
+    if p.is_null() {
+        Err(pmsm_status_t::PMSM_ERR_NULL)
+    } else if !aligned(p) {
+        Err(pmsm_status_t::PMSM_ERR_MISALIGNED)
+    } else {
+        // SAFETY: non-null and aligned (checked); valid per the caller's contract.
+        Ok(unsafe { &*p })
+    }
+}
+
+/// Writes `value` to `*p` if it is non-null and aligned.
+///
+/// # Safety
+/// `p` is null or points to writable memory for a `T`.
+pub(crate) unsafe fn put<T>(p: *mut T, value: T) -> pmsm_status_t {
+    if p.is_null() {
+        pmsm_status_t::PMSM_ERR_NULL
+    } else if !aligned(p) {
+        pmsm_status_t::PMSM_ERR_MISALIGNED
+    } else {
+        // SAFETY: non-null and aligned (checked); writable per the caller's contract. `write`
+        // does not read or drop the old contents.
+        unsafe { core::ptr::write(p, value) };
+        pmsm_status_t::PMSM_OK
+    }
+}
+
+/// The drive behind a handle, checked for null, alignment and the init mark.
+///
+/// # Safety
+/// `d` is null or points to at least `size_of::<pmsm_drive_t>()` readable and writable bytes
+/// that nothing else accesses during the call.
+pub(crate) unsafe fn drive<'a>(
+    d: *mut pmsm_drive_t,
+) -> Result<&'a mut pmsm_drive_t, pmsm_status_t> {
+    if d.is_null() {
+        return Err(pmsm_status_t::PMSM_ERR_NULL);
+    }
+    if !aligned(d) {
+        return Err(pmsm_status_t::PMSM_ERR_MISALIGNED);
+    }
+    // SAFETY: non-null, aligned, readable (contract); the mark is read through a raw place
+    // before any reference to the drive exists, so uninitialised storage is only read as a
+    // `u32` (any bit pattern is a valid `u32`).
+    let mark = unsafe { core::ptr::addr_of!((*d).mark).read_volatile() };
+    if mark != MARK {
+        return Err(pmsm_status_t::PMSM_ERR_NOT_INITIALIZED);
+    }
+    // SAFETY: the mark is only written by `pmsm_drive_init` together with a whole valid
+    // `pmsm_drive_t`; exclusive access per the contract.
+    Ok(unsafe { &mut *d })
+}
+
+pub(crate) fn status(r: Result<(), pmsm_status_t>) -> pmsm_status_t {
+    match r {
+        Ok(()) => pmsm_status_t::PMSM_OK,
+        Err(e) => e,
+    }
+}

@@ -1,0 +1,197 @@
+//! Read access to a drive: state and fault, estimate, telemetry, initial position, bases.
+//! Integer only except `pmsm_get_bases`; none of them changes the drive.
+#![allow(unsafe_code)]
+
+use crate::convert;
+use crate::handle::pmsm_drive_t;
+use crate::handle::{drive, put};
+use crate::types::*;
+use core::ffi::{CStr, c_char};
+
+/// The state and the latched fault.
+///
+/// # Safety
+/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_state_info_t`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_get_state(
+    drive: *mut pmsm_drive_t,
+    out: *mut pmsm_state_info_t,
+) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    let d = match unsafe { self::drive(drive) } {
+        Ok(d) => d,
+        Err(e) => return e,
+    };
+    let s = d.drive.state();
+    let (fault, value) = convert::fault_code(&s);
+    // SAFETY: forwarded contract.
+    unsafe {
+        put(
+            out,
+            pmsm_state_info_t {
+                state: convert::state_code(&s),
+                fault,
+                fault_value: value,
+            },
+        )
+    }
+}
+
+/// The rotor angle and speed estimated at the last step (integer only, ISR-safe).
+///
+/// # Safety
+/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_estimate_t`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_get_estimate(
+    drive: *mut pmsm_drive_t,
+    out: *mut pmsm_estimate_t,
+) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    let d = match unsafe { self::drive(drive) } {
+        Ok(d) => d,
+        Err(e) => return e,
+    };
+    let e = d.drive.telemetry().estimate;
+    // SAFETY: forwarded contract.
+    unsafe {
+        put(
+            out,
+            pmsm_estimate_t {
+                theta: e.theta.0,
+                omega: e.omega.to_bits(),
+            },
+        )
+    }
+}
+
+/// The per-unit bases, SI doubles.
+///
+/// # Safety
+/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_bases_t`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_get_bases(
+    drive: *mut pmsm_drive_t,
+    out: *mut pmsm_bases_t,
+) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    let d = match unsafe { self::drive(drive) } {
+        Ok(d) => d,
+        Err(e) => return e,
+    };
+    let b = d.drive.config().base;
+    // SAFETY: forwarded contract.
+    unsafe {
+        put(
+            out,
+            pmsm_bases_t {
+                current_a: b.current_a,
+                voltage_v: b.voltage_v,
+                omega_e_rad_s: b.omega_e_rad_s,
+                sample_s: b.sample_s,
+            },
+        )
+    }
+}
+
+/// What the last step computed: the controller's frame, the measured and reference currents,
+/// the commanded voltage, the estimate and the estimator's health figure (integer only).
+///
+/// # Safety
+/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_telemetry_t`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_get_telemetry(
+    drive: *mut pmsm_drive_t,
+    out: *mut pmsm_telemetry_t,
+) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    let d = match unsafe { self::drive(drive) } {
+        Ok(d) => d,
+        Err(e) => return e,
+    };
+    let t = d.drive.telemetry();
+    let value = pmsm_telemetry_t {
+        theta: t.theta.0,
+        theta_est: t.estimate.theta.0,
+        omega_est: t.estimate.omega.to_bits(),
+        i_d: t.i_dq.d.to_bits(),
+        i_q: t.i_dq.q.to_bits(),
+        i_d_ref: t.i_ref.d.to_bits(),
+        i_q_ref: t.i_ref.q.to_bits(),
+        v_alpha: t.v.alpha.to_bits(),
+        v_beta: t.v.beta.to_bits(),
+        health: d.drive.health().to_bits(),
+        saturated: u32::from(t.saturated),
+    };
+    // SAFETY: forwarded contract.
+    unsafe { put(out, value) }
+}
+
+/// The last initial position detection: the detected angle, sector and pulse peaks once one
+/// has completed, and which check failed while the drive is in
+/// `PMSM_FAULT_INITIAL_POSITION` (integer only).
+///
+/// # Safety
+/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_ipd_t`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_get_ipd(
+    drive: *mut pmsm_drive_t,
+    out: *mut pmsm_ipd_t,
+) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    let d = match unsafe { self::drive(drive) } {
+        Ok(d) => d,
+        Err(e) => return e,
+    };
+    let (fault, fault_value) = convert::ipd_fault(&d.drive.state());
+    let mut value = pmsm_ipd_t {
+        fault,
+        fault_value,
+        ..pmsm_ipd_t::default()
+    };
+    if let Some(r) = d.drive.ipd_result() {
+        value.found = 1;
+        value.theta = r.theta.0;
+        value.theta_mod_pi = r.theta_mod_pi.0;
+        value.sector = u32::from(r.sector);
+        value.peaks = r.peaks.map(|p| p.to_bits());
+    }
+    // SAFETY: forwarded contract.
+    unsafe { put(out, value) }
+}
+
+/// A static, NUL-terminated short name of a `pmsm_fault_t` code (the core's `Fault::name()`,
+/// "none" for 0, "unknown" beyond the last code).
+#[unsafe(no_mangle)]
+pub extern "C" fn pmsm_fault_name(fault: u32) -> *const c_char {
+    let s: &'static CStr = match fault {
+        0 => c"none",
+        1 => c"overcurrent",
+        2 => c"bus_undervoltage",
+        3 => c"bus_overvoltage",
+        4 => c"initial_position",
+        5 => c"handover",
+        6 => c"current_sensor",
+        7 => c"phase_loss",
+        8 => c"stall",
+        9 => c"loss_of_lock",
+        10 => c"overrun",
+        _ => c"unknown",
+    };
+    s.as_ptr()
+}
+
+/// A static, NUL-terminated short name of a `pmsm_ipd_fault_t` code (the core's
+/// `IpdFault::name()`, "none" for 0, "unknown" beyond the last code).
+#[unsafe(no_mangle)]
+pub extern "C" fn pmsm_ipd_fault_name(fault: u32) -> *const c_char {
+    let s: &'static CStr = match fault {
+        0 => c"none",
+        1 => c"overcurrent",
+        2 => c"no_current",
+        3 => c"low_saliency",
+        4 => c"no_polarity",
+        5 => c"bus_low",
+        _ => c"unknown",
+    };
+    s.as_ptr()
+}
