@@ -49,8 +49,20 @@ pub mod svpwm;
 pub mod units;
 
 pub use angle::{Angle, SinCos};
+pub use control::{CurrentDesign, SpeedDesign};
+pub use deadtime::{CurrentSource, DeadTimeDesign, DeadTimeMode, DeviceParams};
+pub use drive::{
+    Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput, DriveState, Fault,
+    OpenLoopDesign, Protection, StartupMode, Telemetry,
+};
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq};
+pub use ipd::{IpdDesign, IpdFault, IpdResult};
 pub use num::{Pu, Unit};
+pub use observer::{
+    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MrasCurrent,
+    MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, Nlo, NloConfig, ObserverInput,
+};
 pub use params::{InverterParams, MotorParams, ParamError};
+pub use svpwm::Duties;
 pub use units::PerUnit;

@@ -32,10 +32,10 @@ mod tests {
     use super::*;
     use pmsm_core::Abc;
     use pmsm_core::Pu;
-    use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState};
-    use pmsm_core::observer::EstimatorKind;
-    use pmsm_core::svpwm::Duties;
-    use pmsm_core::{InverterParams, MotorParams, PerUnit};
+    use pmsm_core::{
+        Drive, DriveConfig, DriveInput, DriveOptions, DriveState, Duties, InverterParams,
+        MotorParams,
+    };
 
     #[derive(Default)]
     struct MockPwm {
@@ -79,9 +79,7 @@ mod tests {
             dead_time_s: 0.5e-6,
             current_full_scale_a: 60.0,
         };
-        let base = PerUnit::new(&m, &inv, 20e3).unwrap();
-        let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
-        Drive::new(DriveConfig::new(&m, &inv, 20e3, design).unwrap())
+        Drive::new(DriveConfig::from_params(&m, &inv, 20e3, DriveOptions::default()).unwrap())
     }
 
     #[test]

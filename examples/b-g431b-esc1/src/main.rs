@@ -18,9 +18,7 @@ use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::entry;
 use defmt_rtt as _;
 use panic_probe as _;
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveState};
-use pmsm_core::observer::EstimatorKind;
-use pmsm_core::{PerUnit, Pu};
+use pmsm_core::{Drive, DriveConfig, DriveOptions, DriveState, Pu};
 use pmsm_stm32::adc::{KnobCommand, OffsetCalibration, Scaling, SpeedKnob};
 use pmsm_stm32::hw::{self, InjectedAdc, Tim1Pwm};
 use pmsm_stm32::timing::{DeadTime, PwmTiming};
@@ -121,15 +119,12 @@ fn main() -> ! {
     // Configuration (floating point, once).
     let (m, inv) = (motor::motor(), motor::inverter());
     let sample_hz = motor::PWM_HZ as f64;
-    let Ok(base) = PerUnit::new(&m, &inv, sample_hz) else {
-        halt("motor.rs: the motor is outside the fixed-point envelope");
-    };
-    let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
-    let Ok(config) = DriveConfig::new(&m, &inv, sample_hz, design) else {
+    let Ok(config) = DriveConfig::from_params(&m, &inv, sample_hz, DriveOptions::default()) else {
         halt(
             "motor.rs: the drive configuration failed (run `pmsm simulate` on the host for the message)",
         );
     };
+    let base = config.base;
     let (Ok(current), Ok(voltage)) = (
         board::CURRENT.scale(base.current_a),
         board::VBUS.scale(base.voltage_v),

@@ -22,7 +22,7 @@ mod config;
 mod monitor;
 mod startup;
 
-pub use config::{DriveConfig, DriveDesign, OpenLoopDesign, Protection, StartupMode};
+pub use config::{DriveConfig, DriveDesign, DriveOptions, OpenLoopDesign, Protection, StartupMode};
 
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
@@ -165,7 +165,7 @@ impl Drive {
     /// A drive in `Idle`.
     pub fn new(config: DriveConfig) -> Self {
         Self {
-            estimator: config.estimator,
+            estimator: AnyEstimator::new(&config.estimator),
             current: CurrentController::new(config.current),
             speed: SpeedController::new(config.speed),
             ipd: Ipd::new(config.ipd),

@@ -16,8 +16,8 @@
 //! Signals: `ê` Q8.24 per unit of `V_b`; `κ` a [`Gain`].
 
 use super::{
-    Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, observer_pole,
-    rotor_angle_from_emf,
+    Direction, DirectionConfig, EmfMeter, EmfMeterConfig, Estimate, Estimator, ObserverInput, gain,
+    observer_pole, rotor_angle_from_emf,
 };
 use crate::angle::Angle;
 use crate::cordic::polar;
@@ -28,10 +28,10 @@ use crate::params::MotorParams;
 use crate::units::PerUnit;
 
 /// Configuration of the [`Ao`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AoConfig {
-    meter: EmfMeter,
-    direction: Direction,
+    meter: EmfMeterConfig,
+    direction: DirectionConfig,
     kappa: Gain,
     inv_psi: Gain,
     psi_pu: Pu,
@@ -49,7 +49,7 @@ impl AoConfig {
         motor.validate()?;
         let kappa = observer_pole(base, gain_rad_s)?;
         Ok(Self {
-            meter: EmfMeter::new(motor, base, motor.lq_h)?,
+            meter: EmfMeterConfig::new(motor, base, motor.lq_h)?,
             kappa,
             inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
             psi_pu: crate::num::pu_from_f64(motor.flux_wb / base.flux_wb),
@@ -57,7 +57,7 @@ impl AoConfig {
             flip_emf: crate::num::pu_from_f64(
                 super::direction::FLIP_SPEED_PU * motor.flux_wb / base.flux_wb,
             ),
-            direction: Direction::new(base.sample_s, base.omega_e_rad_s),
+            direction: DirectionConfig::new(base.sample_s, base.omega_e_rad_s),
             gain_rad_s,
         })
     }
@@ -86,8 +86,8 @@ impl Ao {
     /// A new observer with zero EMF estimate.
     pub fn new(config: AoConfig) -> Self {
         Self {
-            meter: config.meter,
-            direction: config.direction,
+            meter: EmfMeter::default(),
+            direction: Direction::default(),
             config,
             emf: AlphaBeta::default(),
             last: Estimate::default(),
@@ -152,12 +152,13 @@ pub(crate) fn emf_of(theta: Angle, omega: Pu, psi_pu: Pu) -> AlphaBeta {
 
 impl Estimator for Ao {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
-        if let Some(measured) = self.meter.update(input.i, input.v) {
+        if let Some(measured) = self.meter.update(&self.config.meter, input.i, input.v) {
             self.innovation = innovation_l1(measured, self.emf);
             self.emf = approach(self.emf, measured, self.config.kappa);
         }
         let p = polar(self.emf.alpha, self.emf.beta);
         let forward = self.direction.update(
+            &self.config.direction,
             p.angle,
             p.magnitude > self.config.min_emf,
             p.magnitude < self.config.flip_emf,

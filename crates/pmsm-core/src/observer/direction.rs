@@ -25,18 +25,14 @@ pub const FLIP_SPEED_PU: f64 = 0.02;
 /// Fractional bits of the filtered step (kept in `i64` to average sub-LSB steps).
 const FRAC: u32 = 16;
 
-/// Tracks the direction of rotation of an EMF vector.
-#[derive(Clone, Copy, Debug)]
-pub struct Direction {
+/// The coefficients of the direction tracker: the filter's shift and the flip threshold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DirectionConfig {
     shift: u32,
     threshold: i64,
-    forward: bool,
-    previous: Option<Angle>,
-    /// Mean angle step per sample, in angle LSB · 2^FRAC.
-    mean_step: i64,
 }
 
-impl Direction {
+impl DirectionConfig {
     /// Tracker for sample period `sample_s` and base electrical speed `omega_b_rad_s`.
     pub fn new(sample_s: f64, omega_b_rad_s: f64) -> Self {
         let samples = TIME_CONSTANT_S / sample_s;
@@ -45,16 +41,35 @@ impl Direction {
         Self {
             shift,
             threshold: (step * (1u64 << FRAC) as f64) as i64,
+        }
+    }
+}
+
+/// Tracks the direction of rotation of an EMF vector (the state; see [`DirectionConfig`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Direction {
+    forward: bool,
+    previous: Option<Angle>,
+    /// Mean angle step per sample, in angle LSB · 2^FRAC.
+    mean_step: i64,
+}
+
+impl Default for Direction {
+    /// Forwards, no history.
+    fn default() -> Self {
+        Self {
             forward: true,
             previous: None,
             mean_step: 0,
         }
     }
+}
 
+impl Direction {
     /// Feeds the angle of the EMF vector at this sample, whether the vector is large enough
     /// for its angle to mean anything, and whether it is small enough for the rotor to be
     /// reversing ([`FLIP_SPEED_PU`]); returns `true` when turning forwards.
-    pub fn update(&mut self, phi: Angle, valid: bool, slow: bool) -> bool {
+    pub fn update(&mut self, c: &DirectionConfig, phi: Angle, valid: bool, slow: bool) -> bool {
         if !valid {
             self.previous = None;
             return self.forward;
@@ -63,12 +78,12 @@ impl Direction {
             let step = (phi - prev).0;
             if step.unsigned_abs() < 1 << 30 {
                 let target = (step as i64) << FRAC;
-                self.mean_step += (target - self.mean_step) >> self.shift;
+                self.mean_step += (target - self.mean_step) >> c.shift;
             }
         }
-        if slow && self.forward && self.mean_step < -self.threshold {
+        if slow && self.forward && self.mean_step < -c.threshold {
             self.forward = false;
-        } else if slow && !self.forward && self.mean_step > self.threshold {
+        } else if slow && !self.forward && self.mean_step > c.threshold {
             self.forward = true;
         }
         self.forward

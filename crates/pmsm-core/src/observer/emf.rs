@@ -18,18 +18,17 @@ use crate::num::{Gain, Pu};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
-/// Measured mean EMF over each interval; holds the previous current sample.
-#[derive(Clone, Copy, Debug)]
-pub struct EmfMeter {
+/// The coefficients of the interval-mean EMF: `R/2` and `L/T_s` in per unit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmfMeterConfig {
     /// `R/Z_b / 2`.
     half_r: Gain,
     /// `L I_b / (V_b T_s)`: per-unit volts per per-unit current change in one sample.
     l_over_ts: Gain,
-    previous_i: Option<AlphaBeta>,
 }
 
-impl EmfMeter {
-    /// Meter for `motor` with inductance `l_h` (the surface motor's `L`, or `L_q`).
+impl EmfMeterConfig {
+    /// Coefficients for `motor` with inductance `l_h` (the surface motor's `L`, or `L_q`).
     pub fn new(motor: &MotorParams, base: &PerUnit, l_h: f64) -> Result<Self, ConfigError> {
         let l_h = crate::params::positive("ld_h", l_h)?;
         Ok(Self {
@@ -38,17 +37,24 @@ impl EmfMeter {
                 "ld_h",
                 l_h * base.current_a / (base.voltage_v * base.sample_s),
             )?,
-            previous_i: None,
         })
     }
+}
 
+/// Measured mean EMF over each interval: the state is the previous current sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EmfMeter {
+    previous_i: Option<AlphaBeta>,
+}
+
+impl EmfMeter {
     /// `ē_k` from the current at `t_k` and the mean voltage over `[t_{k−1}, t_k]`; `None` at
     /// the first sample (no interval yet).
-    pub fn update(&mut self, i: AlphaBeta, v: AlphaBeta) -> Option<AlphaBeta> {
+    pub fn update(&mut self, c: &EmfMeterConfig, i: AlphaBeta, v: AlphaBeta) -> Option<AlphaBeta> {
         let prev = self.previous_i.replace(i)?;
         let component = |v: Pu, i0: Pu, i1: Pu| {
-            let drop = self.half_r.apply(i0.saturating_add(i1));
-            let stored = self.l_over_ts.apply(i1.saturating_sub(i0));
+            let drop = c.half_r.apply(i0.saturating_add(i1));
+            let stored = c.l_over_ts.apply(i1.saturating_sub(i0));
             v.saturating_sub(drop).saturating_sub(stored)
         };
         Some(AlphaBeta {

@@ -76,8 +76,8 @@ pub mod mras_emf;
 pub mod nlo;
 
 pub use ao::{Ao, AoConfig};
-pub use direction::Direction;
-pub use emf::EmfMeter;
+pub use direction::{Direction, DirectionConfig};
+pub use emf::{EmfMeter, EmfMeterConfig};
 pub use mras_emf::{MrasEmf, MrasEmfConfig};
 pub use nlo::{Nlo, NloConfig};
 
@@ -150,6 +150,33 @@ impl EstimatorKind {
     }
 }
 
+/// The configuration of any estimator of the crate: coefficients only (the state is built
+/// from it by [`AnyEstimator::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub enum EstimatorConfig {
+    /// See [`NloConfig`].
+    Nlo(NloConfig),
+    /// See [`AoConfig`].
+    Ao(AoConfig),
+    /// See [`MrasEmfConfig`].
+    MrasEmf(MrasEmfConfig),
+    /// See [`MrasCurrentConfig`].
+    MrasCurrent(MrasCurrentConfig),
+}
+
+impl EstimatorConfig {
+    /// Which estimator it configures.
+    pub fn kind(&self) -> EstimatorKind {
+        match self {
+            EstimatorConfig::Nlo(_) => EstimatorKind::Nlo,
+            EstimatorConfig::Ao(_) => EstimatorKind::Ao,
+            EstimatorConfig::MrasEmf(_) => EstimatorKind::MrasEmf,
+            EstimatorConfig::MrasCurrent(_) => EstimatorKind::MrasCurrent,
+        }
+    }
+}
+
 /// Any estimator of the crate, without dynamic dispatch (no allocation, one concrete type
 /// for the drive and the C interface).
 #[derive(Clone, Copy, Debug)]
@@ -166,6 +193,16 @@ pub enum AnyEstimator {
 }
 
 impl AnyEstimator {
+    /// The estimator `config` describes, at rest.
+    pub fn new(config: &EstimatorConfig) -> Self {
+        match *config {
+            EstimatorConfig::Nlo(c) => AnyEstimator::Nlo(Nlo::new(c)),
+            EstimatorConfig::Ao(c) => AnyEstimator::Ao(Ao::new(c)),
+            EstimatorConfig::MrasEmf(c) => AnyEstimator::MrasEmf(MrasEmf::new(c)),
+            EstimatorConfig::MrasCurrent(c) => AnyEstimator::MrasCurrent(MrasCurrent::new(c)),
+        }
+    }
+
     /// Which one it is.
     pub fn kind(&self) -> EstimatorKind {
         match self {

@@ -35,7 +35,7 @@ pub const PAPER_CONSTANTS: [f64; 3] = [0.0347, 5208.0, 0.1];
 pub const MIN_SPEED_PU: f64 = 0.005;
 
 /// Configuration of the [`MrasEmf`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MrasEmfConfig {
     ao: AoConfig,
     /// `ω_b T_s / c3`: pull rate per unit of speed.

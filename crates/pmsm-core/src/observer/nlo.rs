@@ -30,8 +30,8 @@
 
 use super::ao::{approach_delta, emf_of, innovation_l1};
 use super::{
-    Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, observer_pole,
-    rotor_angle_from_emf,
+    Direction, DirectionConfig, EmfMeter, EmfMeterConfig, Estimate, Estimator, ObserverInput, gain,
+    observer_pole, rotor_angle_from_emf,
 };
 use crate::angle::{Angle, SinCos};
 use crate::cordic::polar;
@@ -46,10 +46,10 @@ use crate::units::PerUnit;
 pub const MIN_EMF_PU: f64 = 1e-4;
 
 /// Configuration of the [`Nlo`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NloConfig {
-    meter: EmfMeter,
-    direction: Direction,
+    meter: EmfMeterConfig,
+    direction: DirectionConfig,
     kappa: Gain,
     inv_psi: Gain,
     psi_pu: Pu,
@@ -77,8 +77,8 @@ impl NloConfig {
         let accel = ts * motor.p() * motor.kt_nm_per_a * motor.flux_wb * base.current_a
             / (motor.j_kg_m2 * base.voltage_v);
         Ok(Self {
-            meter: EmfMeter::new(motor, base, motor.lq_h)?,
-            direction: Direction::new(ts, base.omega_e_rad_s),
+            meter: EmfMeterConfig::new(motor, base, motor.lq_h)?,
+            direction: DirectionConfig::new(ts, base.omega_e_rad_s),
             kappa,
             inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
             psi_pu: pu_from_f64(motor.flux_wb / base.flux_wb),
@@ -112,8 +112,8 @@ impl Nlo {
     /// A new observer with zero EMF estimate.
     pub fn new(config: NloConfig) -> Self {
         Self {
-            meter: config.meter,
-            direction: config.direction,
+            meter: EmfMeter::default(),
+            direction: Direction::default(),
             config,
             emf: AlphaBeta::default(),
             emf_dir: Angle::ZERO.sin_cos(),
@@ -167,7 +167,7 @@ impl Estimator for Nlo {
             .saturating_add(mul_unit(growth, self.emf_dir.sin))
             .saturating_sub(c.friction.apply(previous.beta));
         // Correction by the innovation of the interval's mean EMF.
-        if let Some(measured) = self.meter.update(input.i, input.v) {
+        if let Some(measured) = self.meter.update(&self.config.meter, input.i, input.v) {
             let s = sinc(half.to_rad_unit());
             let predicted = AlphaBeta {
                 alpha: mul_unit(half_turned.alpha, s),
@@ -182,6 +182,7 @@ impl Estimator for Nlo {
             self.emf_dir = p.angle.sin_cos();
         }
         let forward = self.direction.update(
+            &self.config.direction,
             p.angle,
             p.magnitude > self.config.min_emf,
             p.magnitude < self.config.flip_emf,

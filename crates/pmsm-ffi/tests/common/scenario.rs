@@ -10,9 +10,10 @@
 //! `WORDS` words per step, in the order of [`Word`].
 #![allow(dead_code)]
 
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, StartupMode};
-use pmsm_core::observer::EstimatorKind;
-use pmsm_core::{Abc, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{
+    Abc, Drive, DriveConfig, DriveInput, DriveOptions, InverterParams, MotorParams, PerUnit,
+    StartupMode,
+};
 use pmsm_ffi::{fault_code, pmsm_config_t, state_code};
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, MotorModel, Plant};
 use std::f64::consts::TAU;
@@ -124,9 +125,11 @@ pub fn record() -> Vec<[i32; WORDS]> {
     let sample_hz = inv.pwm_hz;
     let base = PerUnit::new(&m, &inv, sample_hz).expect("base");
     inv.current_full_scale_a = 4.0 * base.current_a;
-    let mut design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
-    design.startup = StartupMode::Ipd;
-    let config = DriveConfig::new(&m, &inv, sample_hz, design).expect("config");
+    let options = DriveOptions {
+        startup: Some(StartupMode::Ipd),
+        ..DriveOptions::default()
+    };
+    let config = DriveConfig::from_params(&m, &inv, sample_hz, options).expect("config");
     let mut drive = Drive::new(config);
 
     let motor = Motor::new(MotorModel::new(m), 137f64.to_radians(), 0.0).expect("motor");
