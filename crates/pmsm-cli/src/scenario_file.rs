@@ -42,7 +42,7 @@
 
 use crate::motor_file::{self, Motor, RawMotor, toml_error};
 use anyhow::{Result, anyhow, bail};
-use pmsm_core::params::{ParamError, ParamReason, in_range, non_negative, positive};
+use pmsm_core::{ParamError, ParamReason, in_range, non_negative, positive};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 

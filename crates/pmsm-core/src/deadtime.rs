@@ -243,13 +243,23 @@ impl DeadTimeConfig {
 
     /// [`DeadTimeConfig::error_vector`] with the bus terms cached (see
     /// [`DeadTimeConfig::error_vector_abc_cached`]).
-    pub fn error_vector_cached(&self, i: AlphaBeta, vdc: Pu, cache: &mut DeadTimeBus) -> AlphaBeta {
+    pub(crate) fn error_vector_cached(
+        &self,
+        i: AlphaBeta,
+        vdc: Pu,
+        cache: &mut DeadTimeBus,
+    ) -> AlphaBeta {
         self.error_vector_abc_cached(inverse_clarke(i), vdc, cache)
     }
 
     /// [`DeadTimeConfig::error_vector_abc`], bit for bit, with the bus terms `V_dead/3` and
     /// `V_dead/√3` taken from `cache` when `vdc` is the reading they were computed for.
-    pub fn error_vector_abc_cached(&self, i: Abc, vdc: Pu, cache: &mut DeadTimeBus) -> AlphaBeta {
+    pub(crate) fn error_vector_abc_cached(
+        &self,
+        i: Abc,
+        vdc: Pu,
+        cache: &mut DeadTimeBus,
+    ) -> AlphaBeta {
         let bits = vdc.to_bits();
         // The empty cache (reading 0) holds what a reading of 0 gives: V_dead = 0.
         if bits != cache.vdc {
@@ -276,7 +286,7 @@ impl DeadTimeConfig {
     /// compensates the command, else `v_ref`.
     pub fn command(&self, v_ref: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
         if self.design.mode.compensates_command() {
-            add(v_ref, v_dt)
+            v_ref.saturating_add(v_dt)
         } else {
             v_ref
         }
@@ -287,10 +297,7 @@ impl DeadTimeConfig {
     /// estimator (eq. 9), else `v_cmd`.
     pub fn estimator_voltage(&self, v_cmd: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
         if self.design.mode.corrects_estimator() {
-            AlphaBeta {
-                alpha: v_cmd.alpha.saturating_sub(v_dt.alpha),
-                beta: v_cmd.beta.saturating_sub(v_dt.beta),
-            }
+            v_cmd.saturating_sub(v_dt)
         } else {
             v_cmd
         }
@@ -300,7 +307,7 @@ impl DeadTimeConfig {
 /// The bus terms of the dead-time vector for the last bus reading seen (see
 /// [`DeadTimeConfig::error_vector_abc_cached`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct DeadTimeBus {
+pub(crate) struct DeadTimeBus {
     vdc: i32,
     /// `V_dead/3`, Q8.26.
     third: i32,
@@ -312,15 +319,9 @@ pub struct DeadTimeBus {
 const SIGN_ONE: i32 = 1 << 28;
 /// `4/3` in Q2.30 (Q4.28 sign sum to Q2.30, divided by 3).
 const FOUR_THIRDS_Q30: i32 = 1_431_655_765;
-/// `4/√3` in Q3.29 (Q4.28 sign difference to Q2.30, divided by √3).
-const FOUR_INV_SQRT3_Q29: i32 = 1_239_850_262;
-
-fn add(a: AlphaBeta, b: AlphaBeta) -> AlphaBeta {
-    AlphaBeta {
-        alpha: a.alpha.saturating_add(b.alpha),
-        beta: a.beta.saturating_add(b.beta),
-    }
-}
+/// `4/√3` in Q3.29 (Q4.28 sign difference to Q2.30, divided by √3): the bits of `1/√3` in
+/// Q1.31.
+const FOUR_INV_SQRT3_Q29: i32 = crate::num::INV_SQRT3_Q31;
 
 #[cfg(test)]
 mod tests {

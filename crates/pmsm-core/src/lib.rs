@@ -33,36 +33,53 @@
     )
 )]
 
-pub mod angle;
-pub mod control;
-pub mod cordic;
-pub mod deadtime;
-pub mod drive;
-pub mod error;
-pub mod frames;
-pub mod hal;
-pub mod ipd;
-pub mod num;
-pub mod observer;
-pub mod params;
-pub mod svpwm;
-pub mod units;
+mod angle;
+mod control;
+mod cordic;
+mod deadtime;
+mod drive;
+mod error;
+mod frames;
+mod hal;
+mod ipd;
+mod num;
+mod observer;
+mod params;
+mod sqrt;
+mod svpwm;
+mod units;
 
-pub use angle::{Angle, SinCos};
-pub use control::{CurrentDesign, SpeedDesign};
-pub use deadtime::{CurrentSource, DeadTimeDesign, DeadTimeMode, DeviceParams};
+pub use angle::{Angle, SinCos, sin_cos};
+pub use control::{
+    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, Pi, PiConfig,
+    PiOutput, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
+};
+pub use cordic::{Polar, polar};
+pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
 pub use drive::{
     Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput, DriveState, Fault,
     OpenLoopDesign, Protection, StartupMode, Telemetry,
 };
 pub use error::ConfigError;
-pub use frames::{Abc, AlphaBeta, Dq};
-pub use ipd::{IpdDesign, IpdFault, IpdResult};
-pub use num::{Pu, Unit};
-pub use observer::{
-    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MrasCurrent,
-    MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, Nlo, NloConfig, ObserverInput,
+pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};
+pub use hal::{PhaseCurrentSampler, ThreePhasePwm, apply, control_step};
+pub use ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdOutput, IpdResult};
+pub use num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64};
+pub use observer::direction::{
+    FLIP_SPEED_PU, THRESHOLD_PU as DIRECTION_THRESHOLD_PU,
+    TIME_CONSTANT_S as DIRECTION_TIME_CONSTANT_S,
 };
-pub use params::{InverterParams, MotorParams, ParamError};
-pub use svpwm::Duties;
-pub use units::PerUnit;
+pub use observer::mras_emf::{
+    MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU, PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
+};
+pub use observer::nlo::MIN_EMF_PU;
+pub use observer::{
+    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MAX_GAIN_TS,
+    MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, Nlo, NloConfig,
+    ObserverInput, default_observer_gain,
+};
+pub use params::{
+    InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative, positive,
+};
+pub use svpwm::{Duties, SvpwmConfig, SvpwmOutput};
+pub use units::{PerUnit, to_f64};

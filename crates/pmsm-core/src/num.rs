@@ -27,6 +27,10 @@ pub const PU_FRAC: u32 = 24;
 /// Fractional bits of [`Unit`].
 pub const UNIT_FRAC: u32 = 30;
 
+/// `1/√3` in Q1.31 (rounded), the scale of Clarke's β, of the modulator's circle and of the
+/// dead-time vector.
+pub(crate) const INV_SQRT3_Q31: i32 = 1_239_850_262;
+
 /// Rounds `x / 2^shift` to nearest (ties toward +∞) and saturates to `i32`.
 ///
 /// `shift` must be in 1..=62 and `|x| ≤ 2⁶³ − 2³²` (any product of two `i32`, or a sum of
@@ -34,7 +38,7 @@ pub const UNIT_FRAC: u32 = 30;
 /// `shift` ≤ 32 (every per-sample product) this is about ten instructions on a Cortex-M4:
 /// the rounding half is added before the shift, and the fit test looks at the high word only.
 #[inline(always)]
-pub const fn round_shift_sat(x: i64, shift: u32) -> i32 {
+pub(crate) const fn round_shift_sat(x: i64, shift: u32) -> i32 {
     if shift <= 32 {
         shr_sat_small(x, shift)
     } else {
@@ -60,7 +64,7 @@ const fn shr_sat_small(x: i64, shift: u32) -> i32 {
 
 /// Saturates an `i64` to the `i32` range.
 #[inline(always)]
-pub const fn sat_i32(x: i64) -> i32 {
+pub(crate) const fn sat_i32(x: i64) -> i32 {
     if x > i32::MAX as i64 {
         i32::MAX
     } else if x < i32::MIN as i64 {
@@ -80,7 +84,7 @@ pub const fn sat_i32(x: i64) -> i32 {
 /// is recognised as the ARM architecture without 32-bit compare-and-swap atomics (Rust sets
 /// no `target_feature` that tells the Thumb-1-only cores apart).
 #[inline(always)]
-pub fn wmul(a: i32, b: i32) -> i64 {
+pub(crate) fn wmul(a: i32, b: i32) -> i64 {
     #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
     {
         wmul_v6m(a, b)
@@ -117,7 +121,7 @@ const fn wmul_halves(a: i32, b: i32) -> i64 {
 /// often per sample (sin/cos, Park), where the call is worth saving; elsewhere [`wmul`] keeps
 /// the micro:bit's nearly full flash in budget.
 #[inline(always)]
-pub fn wmul_inline(a: i32, b: i32) -> i64 {
+pub(crate) fn wmul_inline(a: i32, b: i32) -> i64 {
     #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
     {
         wmul_halves(a, b)
@@ -131,7 +135,7 @@ pub fn wmul_inline(a: i32, b: i32) -> i64 {
 /// `a · b` as the exact 64-bit product of two `u32` (`UMULL` on Cortex-M3/M4; four 16×16
 /// partial products on ARMv6-M instead of the general `__aeabi_lmul`).
 #[inline(always)]
-pub fn umul(a: u32, b: u32) -> u64 {
+pub(crate) fn umul(a: u32, b: u32) -> u64 {
     #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
     {
         umul_v6m(a, b)
@@ -165,7 +169,7 @@ const fn umul_halves(a: u32, b: u32) -> u64 {
 /// control path. Valid for `|x| ≤ d` (a fraction within ±1); beyond, `x << pre` saturates and
 /// so does the result.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Reciprocal {
+pub(crate) struct Reciprocal {
     r: i32,
     pre: u32,
 }
@@ -259,7 +263,7 @@ pub fn mul_unit(a: Pu, u: Unit) -> Pu {
 
 /// `a · u + b · v` with a single rounding, saturated (the kernel of Park's rotation).
 #[inline(always)]
-pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
+pub(crate) fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
     let acc = wmul_inline(a.to_bits(), u.to_bits()) + wmul_inline(b.to_bits(), v.to_bits());
     Pu::from_bits(round_shift_sat(acc, UNIT_FRAC))
 }
@@ -271,7 +275,7 @@ pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
 /// significant bits whatever the magnitude: [`Gain::new`] picks the shift once in the
 /// configuration, and [`Gain::apply`] is one 32×32→64 multiply and a rounding shift.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Gain {
+pub(crate) struct Gain {
     mantissa: i32,
     shift: u32,
 }
@@ -353,7 +357,7 @@ impl Gain {
 /// reject values outside the range. `Coef<30>` holds gains below 2 in magnitude to 9.3e−10,
 /// `Coef<24>` below 128 to 6e−8.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Coef<const F: u32>(i32);
+pub(crate) struct Coef<const F: u32>(i32);
 
 impl<const F: u32> Coef<F> {
     /// Zero.
@@ -406,15 +410,6 @@ impl<const F: u32> Coef<F> {
     }
 }
 
-/// `a · x + b · y` with one rounding, saturated: two products for the price of one fit test.
-#[inline(always)]
-pub fn mac2<const F: u32>(a: Coef<F>, x: Pu, b: Coef<F>, y: Pu) -> Pu {
-    Pu::from_bits(round_shift_sat(
-        a.wide(x.to_bits()) + b.wide(y.to_bits()),
-        F,
-    ))
-}
-
 /// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).
 ///
 /// For configuration and host code; the control path never touches floats.
@@ -422,13 +417,8 @@ pub fn pu_from_f64(x: f64) -> Pu {
     Pu::from_bits(f64_to_bits_sat(x, PU_FRAC))
 }
 
-/// Converts a float to [`Unit`], rounding to nearest and saturating (NaN gives 0).
-pub fn unit_from_f64(x: f64) -> Unit {
-    Unit::from_bits(f64_to_bits_sat(x, UNIT_FRAC))
-}
-
 /// `round(x · 2^frac)` saturated to `i32`; NaN maps to 0.
-pub fn f64_to_bits_sat(x: f64, frac: u32) -> i32 {
+pub(crate) fn f64_to_bits_sat(x: f64, frac: u32) -> i32 {
     let scaled = libm::round(x * (1u64 << frac) as f64);
     if scaled.is_nan() {
         0
@@ -572,7 +562,7 @@ mod tests {
         }
 
         #[test]
-        fn coef_within_half_lsb(v in -100.0f64..100.0, x in any::<i32>(), y in any::<i32>()) {
+        fn coef_within_half_lsb(v in -100.0f64..100.0, x in any::<i32>()) {
             let c = Coef::<24>::new(v).unwrap();
             prop_assert!((c.to_f64() - v).abs() <= 0.5 / (1u64 << 24) as f64);
             let exact = x as f64 * c.to_f64();
@@ -581,12 +571,6 @@ mod tests {
                 prop_assert!((got - exact).abs() <= 0.5);
             } else if exact.abs() > 2.1475e9 {
                 prop_assert_eq!(c.apply_bits(x), if exact > 0.0 { i32::MAX } else { i32::MIN });
-            }
-            let d = Coef::<24>::new(-v / 3.0).unwrap();
-            let exact2 = exact + y as f64 * d.to_f64();
-            let got2 = mac2(c, Pu::from_bits(x), d, Pu::from_bits(y)).to_bits() as f64;
-            if exact2.abs() < 2.1e9 {
-                prop_assert!((got2 - exact2).abs() <= 0.5);
             }
         }
 

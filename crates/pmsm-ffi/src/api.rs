@@ -10,8 +10,8 @@ use crate::convert::{self, CBuf};
 use core::ffi::{c_char, c_void};
 use core::mem::{align_of, size_of};
 use pmsm_core::Abc;
-use pmsm_core::drive::{Drive, DriveInput};
-use pmsm_core::num::Pu;
+use pmsm_core::Pu;
+use pmsm_core::{Drive, DriveInput};
 
 /// Status returned by every function that can fail. `PMSM_OK` (0) is success; errors are
 /// negative. `pmsm_status_message` gives a one-line description of each.

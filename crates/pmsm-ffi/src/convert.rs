@@ -6,10 +6,10 @@ use crate::api::{
     pmsm_status_t,
 };
 use core::f64::consts::TAU;
-use pmsm_core::deadtime::DeadTimeMode;
-use pmsm_core::drive::{DriveConfig, DriveDesign, DriveState, Fault, StartupMode};
-use pmsm_core::observer::EstimatorKind;
+use pmsm_core::DeadTimeMode;
+use pmsm_core::EstimatorKind;
 use pmsm_core::{Angle, ConfigError, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{DriveConfig, DriveDesign, DriveState, Fault, StartupMode};
 
 /// Why a configuration was rejected.
 #[derive(Clone, Copy, Debug)]

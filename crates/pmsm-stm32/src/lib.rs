@@ -13,8 +13,8 @@
 //! prescaler and period for a frequency, dead-time register encoding, ADC scaling to per unit,
 //! offset calibration, the speed knob, and the register values the `hw` module writes.
 //!
-//! The traits are the core's ([`pmsm_core::hal`], re-exported here); this crate implements
-//! them for TIM1 and the ADCs.
+//! The traits are the core's ([`ThreePhasePwm`], [`PhaseCurrentSampler`], re-exported here);
+//! this crate implements them for TIM1 and the ADCs.
 #![no_std]
 
 pub mod adc;
@@ -25,7 +25,7 @@ pub mod timing;
 #[allow(unsafe_code)]
 pub mod hw;
 
-pub use pmsm_core::hal::{PhaseCurrentSampler, ThreePhasePwm, apply, control_step};
+pub use pmsm_core::{PhaseCurrentSampler, ThreePhasePwm, apply, control_step};
 
 #[cfg(test)]
 mod tests {

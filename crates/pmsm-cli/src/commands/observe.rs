@@ -13,10 +13,8 @@
 
 use crate::{csv_io, motor_file, plot};
 use anyhow::{Result, anyhow, bail};
-use pmsm_core::observer::{
-    Ao, AoConfig, Estimator, MrasEmf, MrasEmfConfig, Nlo, NloConfig, ObserverInput,
-};
 use pmsm_core::{AlphaBeta, InverterParams, PerUnit};
+use pmsm_core::{Ao, AoConfig, Estimator, MrasEmf, MrasEmfConfig, Nlo, NloConfig, ObserverInput};
 use std::f64::consts::{PI, TAU};
 use std::path::PathBuf;
 

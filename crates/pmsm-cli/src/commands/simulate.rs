@@ -9,10 +9,10 @@
 use crate::plot;
 use crate::scenario_file::{self, CompensationMode, InverterKind, ObserverKind, Scenario, Startup};
 use anyhow::{Context, Result, anyhow, bail};
-use pmsm_core::deadtime::DeadTimeMode;
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState, StartupMode};
-use pmsm_core::observer::EstimatorKind;
+use pmsm_core::DeadTimeMode;
+use pmsm_core::EstimatorKind;
 use pmsm_core::{Abc, Angle, InverterParams, PerUnit};
+use pmsm_core::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState, StartupMode};
 use pmsm_plant::{AdcParams, Motor, Plant};
 use std::f64::consts::{PI, TAU};
 use std::io::Write as _;
@@ -180,7 +180,7 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
         design.speed.bandwidth_rad_s = TAU * hz;
     }
     if let Some(hz) = c.mras_bandwidth_hz {
-        design.mras_current = pmsm_core::observer::MrasCurrentGains::design(m, TAU * hz);
+        design.mras_current = pmsm_core::MrasCurrentGains::design(m, TAU * hz);
     }
     if let Some(a) = c.current_limit_a {
         design.speed.current_limit_a = a;
@@ -263,7 +263,7 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
             pwm_on: out.pwm_on,
             state: drive.state(),
             i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
-            health: pmsm_core::units::to_f64(drive.health()),
+            health: pmsm_core::to_f64(drive.health()),
         });
         injector
             .apply(t, &mut plant, last_codes)

@@ -12,7 +12,6 @@
 //! cannot turn the estimate half a turn.
 
 use crate::angle::Angle;
-use crate::num::sat_i32;
 
 /// Time constant of the mean angle step, s.
 pub const TIME_CONSTANT_S: f64 = 2e-3;
@@ -27,7 +26,7 @@ const FRAC: u32 = 16;
 
 /// The coefficients of the direction tracker: the filter's shift and the flip threshold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct DirectionConfig {
+pub(crate) struct DirectionConfig {
     shift: u32,
     threshold: i64,
 }
@@ -47,7 +46,7 @@ impl DirectionConfig {
 
 /// Tracks the direction of rotation of an EMF vector (the state; see [`DirectionConfig`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Direction {
+pub(crate) struct Direction {
     forward: bool,
     previous: Option<Angle>,
     /// Mean angle step per sample, in angle LSB · 2^FRAC.
@@ -87,16 +86,6 @@ impl Direction {
             self.forward = true;
         }
         self.forward
-    }
-
-    /// True when turning forwards (θ increasing).
-    pub fn forward(&self) -> bool {
-        self.forward
-    }
-
-    /// The mean angle step per sample, angle LSB (saturated).
-    pub fn mean_step(&self) -> i32 {
-        sat_i32(self.mean_step >> FRAC)
     }
 
     /// Restarts with a known direction.

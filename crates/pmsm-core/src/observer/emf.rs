@@ -20,7 +20,7 @@ use crate::units::PerUnit;
 
 /// The coefficients of the interval-mean EMF: `R/2` and `L/T_s` in per unit.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EmfMeterConfig {
+pub(crate) struct EmfMeterConfig {
     /// `R/Z_b / 2`.
     half_r: Gain,
     /// `L I_b / (V_b T_s)`: per-unit volts per per-unit current change in one sample.
@@ -43,13 +43,14 @@ impl EmfMeterConfig {
 
 /// Measured mean EMF over each interval: the state is the previous current sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct EmfMeter {
+pub(crate) struct EmfMeter {
     previous_i: Option<AlphaBeta>,
 }
 
 impl EmfMeter {
     /// `ē_k` from the current at `t_k` and the mean voltage over `[t_{k−1}, t_k]`; `None` at
     /// the first sample (no interval yet).
+    #[inline(always)]
     pub fn update(&mut self, c: &EmfMeterConfig, i: AlphaBeta, v: AlphaBeta) -> Option<AlphaBeta> {
         let prev = self.previous_i.replace(i)?;
         let component = |v: Pu, i0: Pu, i1: Pu| {

@@ -68,16 +68,16 @@ pub trait Estimator {
     fn reset(&mut self, theta: Angle, omega: Pu);
 }
 
-pub mod ao;
-pub mod direction;
-pub mod emf;
-pub mod mras_current;
-pub mod mras_emf;
-pub mod nlo;
+pub(crate) mod ao;
+pub(crate) mod direction;
+pub(crate) mod emf;
+pub(crate) mod mras_current;
+pub(crate) mod mras_emf;
+pub(crate) mod nlo;
 
 pub use ao::{Ao, AoConfig};
-pub use direction::{Direction, DirectionConfig};
-pub use emf::{EmfMeter, EmfMeterConfig};
+pub(crate) use direction::{Direction, DirectionConfig};
+pub(crate) use emf::{EmfMeter, EmfMeterConfig};
 pub use mras_emf::{MrasEmf, MrasEmfConfig};
 pub use nlo::{Nlo, NloConfig};
 
@@ -216,7 +216,7 @@ impl AnyEstimator {
 
 /// The rotor frame an estimator already rotated the current into, for the drive to reuse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Frame {
+pub(crate) struct Frame {
     /// `sin_cos(θ̂)` of the last estimate, bit for bit.
     pub sc: crate::angle::SinCos,
     /// The measured current of the last update in that frame, bit for bit what `park` of the
@@ -229,7 +229,7 @@ pub struct Frame {
 impl AnyEstimator {
     /// For the estimators that rotate the measured current into their own estimated frame
     /// (the current-model MRAS): see [`Frame`]. `None` for the others.
-    pub fn frame(&self) -> Option<Frame> {
+    pub(crate) fn frame(&self) -> Option<Frame> {
         match self {
             AnyEstimator::MrasCurrent(e) => {
                 let (sc, i_dq) = e.frame();

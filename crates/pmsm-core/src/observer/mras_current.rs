@@ -195,17 +195,6 @@ impl MrasCurrentGains {
         }
     }
 
-    /// The plain MRAS of seed 001, critically damped at `bandwidth_rad_s`, without the
-    /// mechanical model: `K_p = 2ω_n/k_∞`, `K_i = ω_n²/k_∞`, `K_L = 0`.
-    pub fn design_plain(motor: &MotorParams, bandwidth_rad_s: f64) -> Self {
-        let k = Self::k_inf(motor);
-        Self {
-            kp: 2.0 * bandwidth_rad_s / k,
-            ki: bandwidth_rad_s * bandwidth_rad_s / k,
-            kl: 0.0,
-        }
-    }
-
     /// [`MrasCurrentGains::design`] at `ω_n = 0.02/T_s`.
     pub fn default_for(motor: &MotorParams, base: &PerUnit) -> Self {
         Self::design(motor, DEFAULT_BANDWIDTH_TS / base.sample_s)
@@ -489,22 +478,17 @@ impl MrasCurrent {
         self.config.xi_scale.apply(self.xi)
     }
 
-    /// The adjustable model's current `î` in the estimated frame.
-    pub fn model_current(&self) -> Dq {
-        self.i_hat
-    }
-
     /// The frame of the last estimate: `sin_cos(θ̂)` of [`Estimator::estimate`]'s angle (bit for
     /// bit what `estimate().theta.sin_cos()` gives) and the measured current of the last
     /// update rotated into it (bit for bit `park(i, sin_cos(θ̂))`; zero after a reset). The
     /// drive reuses both instead of computing them again.
-    pub fn frame(&self) -> (SinCos, Dq) {
+    pub(crate) fn frame(&self) -> (SinCos, Dq) {
         (self.sc, self.i_dq)
     }
 
     /// sin/cos of the next update's frame angle, `θ̂ + ω̂ T_s` with the last estimate: the
     /// rotor frame at the end of the coming PWM period.
-    pub fn next_frame(&self) -> SinCos {
+    pub(crate) fn next_frame(&self) -> SinCos {
         self.sc_next
     }
 

@@ -161,10 +161,7 @@ impl Estimator for MrasEmf {
         let pull = pull_fraction(c.pull.apply(speed_ao));
         self.model = approach(turned, reference, Gain::from_raw(pull.to_bits(), 24));
         // ε = ẽ × (ê_AO − ẽ) at the same instant (seed 000 eq. 28).
-        let d = AlphaBeta {
-            alpha: reference.alpha.saturating_sub(self.model.alpha),
-            beta: reference.beta.saturating_sub(self.model.beta),
-        };
+        let d = reference.saturating_sub(self.model);
         let eps = mul(d.beta, self.model.alpha).saturating_sub(mul(d.alpha, self.model.beta));
         self.integral = self.integral.saturating_add(c.k_int.apply(eps));
         // ω̂_Ad = (k1 ε + k2 ∫) / ω̂_AO (seed 000 eq. 29).

@@ -1,7 +1,7 @@
 //! Motors and inverter of the two seeds (scenarios.md), shared by the integration tests.
 #![allow(dead_code)]
 
-use pmsm_core::params::{InverterParams, MotorParams};
+use pmsm_core::{InverterParams, MotorParams};
 
 /// Motor A (seed 000, surface) with the paper's K_T = 1.108 N·m/A.
 pub fn motor_a() -> MotorParams {

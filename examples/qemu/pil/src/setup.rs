@@ -1,8 +1,8 @@
 //! Motor A of `docs/scenarios.md` (seed 000) on a 300 V bus, sampled at 20 kHz.
 
-use pmsm_core::{DriveConfig, DriveOptions, StartupMode};
-use pmsm_core::observer::{AoConfig, EstimatorKind, MrasEmfConfig, NloConfig};
+use pmsm_core::{AoConfig, EstimatorKind, MrasEmfConfig, NloConfig};
 use pmsm_core::{ConfigError, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{DriveConfig, DriveOptions, StartupMode};
 
 /// Control sample rate, Hz.
 pub const SAMPLE_HZ: f64 = 20e3;
