@@ -69,10 +69,10 @@ pub use observer::direction::{
     FLIP_SPEED_PU, THRESHOLD_PU as DIRECTION_THRESHOLD_PU,
     TIME_CONSTANT_S as DIRECTION_TIME_CONSTANT_S,
 };
+pub use observer::emf::MIN_EMF_PU;
 pub use observer::mras_emf::{
     MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU, PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
 };
-pub use observer::nlo::MIN_EMF_PU;
 pub use observer::{
     AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MAX_GAIN_TS,
     MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, Nlo, NloConfig,

@@ -76,7 +76,7 @@ pub(crate) mod mras_emf;
 pub(crate) mod nlo;
 
 pub use ao::{Ao, AoConfig};
-pub(crate) use direction::{Direction, DirectionConfig};
+pub(crate) use direction::Direction;
 pub(crate) use emf::{EmfMeter, EmfMeterConfig};
 pub use mras_emf::{MrasEmf, MrasEmfConfig};
 pub use nlo::{Nlo, NloConfig};
@@ -114,18 +114,6 @@ pub(crate) fn gain(key: &'static str, value: f64) -> Result<Gain, ConfigError> {
         min: 1e-9,
         max: 1e9,
     })
-}
-
-/// The angle of the rotor d axis from the angle `phi` of a back-EMF vector: the EMF leads d by
-/// +90° when turning forwards (`ψ ω (−sin θ, cos θ)`) and lags it by 90° backwards
-/// (seed 000 eq. 11, 19: `θ̂ = atan2(−ê_α/s, ê_β/s)`).
-#[inline(always)]
-pub(crate) fn rotor_angle_from_emf(phi: Angle, forward: bool) -> Angle {
-    if forward {
-        phi - Angle::HALF_PI
-    } else {
-        phi + Angle::HALF_PI
-    }
 }
 
 pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};

@@ -19,8 +19,9 @@
 //! bounded. The division is the one `i64` division of the estimators (a library call on
 //! Cortex-M).
 
-use super::ao::{Ao, AoConfig, approach};
-use super::{Estimate, Estimator, ObserverInput, gain, rotor_angle_from_emf};
+use super::ao::{Ao, AoConfig};
+use super::emf::{approach, rotor_angle_from_emf};
+use super::{Estimate, Estimator, ObserverInput, gain};
 use crate::angle::Angle;
 use crate::cordic::polar;
 use crate::error::ConfigError;
