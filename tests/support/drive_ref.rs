@@ -269,23 +269,7 @@ impl FocRef {
 // Motors and inverters of the tests
 // ---------------------------------------------------------------------------------------------
 
-/// Motor B of seed 001 (scenarios.md): 1.1 kW interior PMSM, rated 2.53 A RMS.
-pub fn motor_b() -> MotorParams {
-    let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-    m.rated_current_a = Some(2.53);
-    m.rated_speed_rpm = Some(3000.0);
-    m
-}
-
-/// Motor B's inverter: 540 V, SVPWM at 14 kHz, 2 µs dead time, ±10 A current sensing.
-pub fn inverter_b() -> pmsm_core::InverterParams {
-    pmsm_core::InverterParams {
-        vdc_v: 540.0,
-        pwm_hz: 14e3,
-        dead_time_s: 2e-6,
-        current_full_scale_a: 10.0,
-    }
-}
+pub use pmsm_core::fixtures::{inverter_b, motor_b};
 
 /// Rated torque current of motor B, A peak: 4 N·m / K_T.
 pub fn motor_b_rated_iq_a() -> f64 {

@@ -39,6 +39,8 @@ mod cordic;
 mod deadtime;
 mod drive;
 mod error;
+#[cfg(any(test, feature = "fixtures"))]
+pub mod fixtures;
 mod frames;
 mod hal;
 mod ipd;

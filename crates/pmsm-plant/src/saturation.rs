@@ -225,11 +225,7 @@ fn ln_cosh(u: f64) -> f64 {
 mod tests {
     use super::*;
 
-    fn motor_b() -> MotorParams {
-        let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-        m.rated_current_a = Some(2.53);
-        m
-    }
+    use pmsm_core::fixtures::motor_b;
 
     #[test]
     fn nominal_values_exact_at_zero() {

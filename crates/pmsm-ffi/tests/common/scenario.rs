@@ -11,8 +11,7 @@
 #![allow(dead_code)]
 
 use pmsm_core::{
-    Abc, Drive, DriveConfig, DriveInput, DriveOptions, InverterParams, MotorParams, PerUnit,
-    StartupMode,
+    Abc, Drive, DriveConfig, DriveInput, DriveOptions, InverterParams, PerUnit, StartupMode,
 };
 use pmsm_ffi::{fault_code, pmsm_config_t, state_code};
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, MotorModel, Plant};
@@ -78,13 +77,7 @@ pub enum Word {
 /// Words per step.
 pub const WORDS: usize = 17;
 
-/// Motor B.
-pub fn motor_b() -> MotorParams {
-    let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-    m.rated_current_a = Some(2.53);
-    m.rated_speed_rpm = Some(3000.0);
-    m
-}
+pub use pmsm_core::fixtures::motor_b;
 
 /// Its inverter (the current full scale is set from the base, as `pmsm simulate` does).
 pub fn inverter_b() -> InverterParams {

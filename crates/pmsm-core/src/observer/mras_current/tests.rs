@@ -10,16 +10,7 @@ use crate::params::{InverterParams, MotorParams};
 use crate::units::PerUnit;
 
 fn motor_b() -> (MotorParams, PerUnit) {
-    let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-    m.rated_current_a = Some(2.53);
-    let inv = InverterParams {
-        vdc_v: 540.0,
-        pwm_hz: 14e3,
-        dead_time_s: 2e-6,
-        current_full_scale_a: 10.0,
-    };
-    let base = PerUnit::new(&m, &inv, 14e3).unwrap();
-    (m, base)
+    (crate::fixtures::motor_b(), crate::fixtures::base_b())
 }
 
 #[test]
