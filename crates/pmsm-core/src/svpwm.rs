@@ -59,7 +59,8 @@ pub struct SvpwmConfig {
 }
 
 impl Default for SvpwmConfig {
-    /// Full linear range (`m = 1`), [`DEFAULT_VDC_MIN_PU`].
+    /// Full linear range (`m = 1`); the bus is taken as lost below 1 % of nominal
+    /// (`0.01 √3` per unit).
     fn default() -> Self {
         Self {
             vmax_per_vdc_q31: INV_SQRT3_Q31,
@@ -95,8 +96,8 @@ impl SvpwmConfig {
     }
 
     /// Duties for the stationary voltage `v` on the bus `vdc` (both per unit of `V_b`).
-    /// Integer only; never panics. Takes the bus's reciprocal at every call; a caller that modulates
-    /// every sample keeps a [`BusReciprocal`] and calls [`SvpwmConfig::modulate_cached`].
+    /// Integer only; never panics. Takes the bus's reciprocal at every call (the drive keeps
+    /// it from one sample to the next while the bus reading does not change).
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
         self.modulate_cached(v, vdc, &mut BusReciprocal::default())
     }

@@ -108,7 +108,7 @@ pub fn adc_smpr(channels: &[u8], smp: u32) -> (u32, u32) {
 /// must stay ≤ 60 MHz), independent mode.
 pub const ADC12_CCR: u32 = 0b11 << 16;
 
-/// PGA gain codes (OPAMPx_CSR.PGA_GAIN[2:0]): non-inverting gain 2, 4, 8, 16, 32, 64 (or
+/// PGA gain codes (OPAMPx_CSR.PGA_GAIN\[2:0\]): non-inverting gain 2, 4, 8, 16, 32, 64 (or
 /// inverting −1 ... −63).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PgaGain {
@@ -127,7 +127,7 @@ pub enum PgaGain {
 }
 
 /// OPAMPx_CSR for PGA mode on VINP0 with the gain network's bottom on VINM0 (bias/filtering:
-/// PGA_GAIN[4:3] = 10, HAL's `OPAMP_PGA_CONNECT_INVERTINGINPUT_IO0_BIAS`), high-speed mode,
+/// PGA_GAIN\[4:3\] = 10, HAL's `OPAMP_PGA_CONNECT_INVERTINGINPUT_IO0_BIAS`), high-speed mode,
 /// output routed internally to the ADC (OPAINTOEN), factory trimming, enabled.
 pub fn opamp_csr_pga(gain: PgaGain) -> u32 {
     let pga = (0b10 << 3) | gain as u32;

@@ -279,7 +279,7 @@ impl Drive {
     ///
     /// The stages of the module's diagram in order: protection, Clarke, the estimator (and
     /// the checks on its output), the state's setpoint (the speed loop in `Run`), then the
-    /// current loops, the dead-time compensation and the modulator ([`Drive::control`]).
+    /// current loops, the dead-time compensation and the modulator (`Drive::control`).
     pub fn step(&mut self, input: &DriveInput) -> DriveOutput {
         if matches!(self.state, DriveState::Idle | DriveState::Fault(_)) {
             return OFF;

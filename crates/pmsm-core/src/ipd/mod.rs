@@ -177,7 +177,7 @@ impl IpdConfig {
     ///
     /// Errors: [`ConfigError::Param`] naming `ipd.*` for a design value out of range or a
     /// peak the pulse voltage cannot reach; [`ConfigError::OutOfEnvelope`] for a pulse longer
-    /// than [`MAX_SAMPLES`].
+    /// than 2²⁰ samples.
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,

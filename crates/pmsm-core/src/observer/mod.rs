@@ -85,7 +85,7 @@ use crate::error::ConfigError;
 use crate::num::Gain;
 
 /// Largest accepted `g T_s` of an observer gain: beyond it the observer keeps less than half a
-/// sample of memory and passes the measurement noise of [`EmfMeter`] almost unfiltered.
+/// sample of memory and passes the noise of the measured interval-mean EMF almost unfiltered.
 pub const MAX_GAIN_TS: f64 = 2.0;
 
 /// The matched pole `κ = 1 − exp(−g T_s)` of the observer gain `g` (key `gain`), which must lie
