@@ -1,11 +1,11 @@
 //! Dead-time compensation (seed 001 eq. 7–9; equations.md §2.3, §4.5) against its f64
 //! reference and against the plant's inverter model.
 
-use pmsm_core::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
-use pmsm_core::frames::AlphaBeta;
-use pmsm_core::num::pu_from_f64;
-use pmsm_core::svpwm::SvpwmConfig;
-use pmsm_core::units::{PerUnit, to_f64};
+use pmsm_core::AlphaBeta;
+use pmsm_core::SvpwmConfig;
+use pmsm_core::pu_from_f64;
+use pmsm_core::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
+use pmsm_core::{PerUnit, to_f64};
 use pmsm_plant::{InverterKind, InverterModel};
 use pmsm_tests::drive_ref::{SQRT3, dead_time_vector_ref, inverter_b, motor_b, v_dead_ref};
 use pmsm_tests::signals::SplitMix;

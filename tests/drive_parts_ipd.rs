@@ -1,10 +1,10 @@
 //! Initial position detection (seed 001 §4; equations.md §4.2) against the plant: motor,
 //! switching inverter with dead time, 12-bit current ADC, default d-axis saturation.
 
-use pmsm_core::frames::AlphaBeta;
-use pmsm_core::ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdResult};
-use pmsm_core::params::{InverterParams, MotorParams};
-use pmsm_core::units::{PerUnit, to_f64};
+use pmsm_core::AlphaBeta;
+use pmsm_core::{InverterParams, MotorParams};
+use pmsm_core::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdResult};
+use pmsm_core::{PerUnit, to_f64};
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Mechanics, Motor, MotorModel, Plant};
 use pmsm_tests::drive_ref::{inverter_b, ipd_pulse_samples_ref, ipd_ref, motor_b, wrap};
 

@@ -2,12 +2,12 @@
 //! f64 and against the plant: motor B of seed 001 with ideal voltages (the command is applied
 //! as is, held over the sample), true angle and speed.
 
-use pmsm_core::control::current::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput};
-use pmsm_core::control::pi::{Pi, PiConfig};
-use pmsm_core::control::speed::{SpeedConfig, SpeedController, SpeedDesign};
-use pmsm_core::frames::Dq;
-use pmsm_core::num::{Pu, pu_from_f64};
-use pmsm_core::units::{PerUnit, to_f64};
+use pmsm_core::Dq;
+use pmsm_core::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput};
+use pmsm_core::{PerUnit, to_f64};
+use pmsm_core::{Pi, PiConfig};
+use pmsm_core::{Pu, pu_from_f64};
+use pmsm_core::{SpeedConfig, SpeedController, SpeedDesign};
 use pmsm_plant::{Mechanics, Motor, MotorModel, Saturation};
 use pmsm_tests::drive_ref::{
     PiRef, SQRT3, inverse_park, inverter_b, motor_b, park, rpm_to_omega_e,

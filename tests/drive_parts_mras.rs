@@ -6,11 +6,11 @@
 //! held over each 1/14 kHz sample, and its currents are read through the plant's 12-bit ADC
 //! model (±10 A). The fixed-point estimator and the f64 reference see the same samples.
 
-use pmsm_core::angle::Angle;
-use pmsm_core::frames::AlphaBeta;
-use pmsm_core::observer::mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
-use pmsm_core::observer::{Estimator, ObserverInput};
-use pmsm_core::units::PerUnit;
+use pmsm_core::AlphaBeta;
+use pmsm_core::Angle;
+use pmsm_core::PerUnit;
+use pmsm_core::{Estimator, ObserverInput};
+use pmsm_core::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
 use pmsm_plant::{AdcParams, CurrentSensor, Mechanics, Motor, MotorModel};
 use pmsm_tests::drive_ref::{
     FocRef, MrasRef, inverter_b, motor_b, motor_b_rated_iq_a, rpm_to_omega_e, wrap,

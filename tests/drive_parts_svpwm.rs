@@ -1,11 +1,11 @@
 //! SVPWM (equations.md §4.3) against its f64 reference: the average voltages rebuilt from the
 //! fixed-point duties, the circle limit, and the 15.5 % more voltage than sine PWM.
 
-use pmsm_core::cordic::polar;
-use pmsm_core::frames::AlphaBeta;
-use pmsm_core::num::{Pu, pu_from_f64};
-use pmsm_core::svpwm::{Duties, SvpwmConfig};
-use pmsm_core::units::to_f64;
+use pmsm_core::AlphaBeta;
+use pmsm_core::polar;
+use pmsm_core::to_f64;
+use pmsm_core::{Duties, SvpwmConfig};
+use pmsm_core::{Pu, pu_from_f64};
 use pmsm_tests::drive_ref::{SQRT3, duties_to_alpha_beta, svpwm_ref};
 use pmsm_tests::signals::SplitMix;
 

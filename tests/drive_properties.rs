@@ -3,10 +3,10 @@
 //! its duties must stay in [0, 1], a fault must turn the outputs off, and every state must
 //! stay finite (the estimate included).
 
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState, StartupMode};
-use pmsm_core::num::Pu;
-use pmsm_core::observer::EstimatorKind;
-use pmsm_core::{Abc, Angle, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{
+    Abc, Angle, Drive, DriveConfig, DriveInput, DriveOptions, DriveState, EstimatorKind,
+    InverterParams, MotorParams, Pu, StartupMode,
+};
 use proptest::prelude::*;
 
 fn drive(scale: f64, estimator: EstimatorKind, startup: StartupMode) -> Option<Drive> {
@@ -27,10 +27,12 @@ fn drive(scale: f64, estimator: EstimatorKind, startup: StartupMode) -> Option<D
         dead_time_s: 2e-6,
         current_full_scale_a: 10.0,
     };
-    let base = PerUnit::new(&m, &inv, 14e3).ok()?;
-    let mut design = DriveDesign::default_for(&m, &inv, &base, estimator);
-    design.startup = startup;
-    let config = DriveConfig::new(&m, &inv, 14e3, design).ok()?;
+    let options = DriveOptions {
+        estimator,
+        startup: Some(startup),
+        ..DriveOptions::default()
+    };
+    let config = DriveConfig::from_params(&m, &inv, 14e3, options).ok()?;
     Some(Drive::new(config))
 }
 

@@ -2,9 +2,9 @@
 //! the same discrete algorithms in SI units), over the speed range down to 1 % of rated speed,
 //! on motor A and on a small servo motor; and the checks of their configurations.
 
-use pmsm_core::observer::ObserverInput;
-use pmsm_core::observer::{Ao, AoConfig, MrasEmf, MrasEmfConfig, Nlo, NloConfig};
+use pmsm_core::ObserverInput;
 use pmsm_core::{AlphaBeta, ConfigError, MotorParams, PerUnit};
+use pmsm_core::{Ao, AoConfig, MrasEmf, MrasEmfConfig, Nlo, NloConfig};
 use pmsm_tests::observers::*;
 use pmsm_tests::trajectory::Sample;
 use pmsm_tests::trajectory::{Profile, Trajectory, motor_a};
@@ -69,7 +69,7 @@ fn compare(
         ts,
         g,
         b.omega_e_rad_s,
-        pmsm_core::observer::mras_emf::PAPER_CONSTANTS,
+        pmsm_core::MRAS_EMF_PAPER_CONSTANTS,
     );
     [
         diff(&nlo, &run_ref(|i, v| rn.update(i, v), &s)),
@@ -189,11 +189,7 @@ fn gains_that_break_the_discrete_observer_are_rejected() {
 }
 
 /// Largest health figure of an estimator after 50 ms, motor A at 120 rad/s, 20 kHz, g = 1000.
-fn max_health<E: pmsm_core::observer::Estimator>(
-    mut est: E,
-    samples: &[Sample],
-    b: &PerUnit,
-) -> f64 {
+fn max_health<E: pmsm_core::Estimator>(mut est: E, samples: &[Sample], b: &PerUnit) -> f64 {
     let mut worst = 0.0f64;
     for (k, s) in samples.iter().enumerate() {
         let v = mean_voltage(samples, k);
@@ -208,7 +204,7 @@ fn max_health<E: pmsm_core::observer::Estimator>(
             },
         });
         if k as f64 > 0.05 * 20e3 {
-            worst = worst.max(pmsm_core::units::to_f64(est.health()));
+            worst = worst.max(pmsm_core::to_f64(est.health()));
         }
     }
     worst
@@ -229,9 +225,7 @@ fn emf_estimators_report_their_health() {
     let nlo_wrong = max_health(Nlo::new(NloConfig::new(&wrong, &b, g).unwrap()), &s, &b);
     let ao = max_health(Ao::new(AoConfig::new(&m, &b, g).unwrap()), &s, &b);
     let mras = max_health(
-        MrasEmf::new(
-            MrasEmfConfig::new(&m, &b, g, pmsm_core::observer::mras_emf::PAPER_CONSTANTS).unwrap(),
-        ),
+        MrasEmf::new(MrasEmfConfig::new(&m, &b, g, pmsm_core::MRAS_EMF_PAPER_CONSTANTS).unwrap()),
         &s,
         &b,
     );

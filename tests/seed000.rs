@@ -3,7 +3,7 @@
 //! the torque-consistent prescribed trajectories of `pmsm_tests::trajectory`.
 
 use pmsm_core::MotorParams;
-use pmsm_core::observer::{Ao, AoConfig, Estimator, MrasEmf, MrasEmfConfig, Nlo, NloConfig};
+use pmsm_core::{Ao, AoConfig, Estimator, MrasEmf, MrasEmfConfig, Nlo, NloConfig};
 use pmsm_tests::observers::*;
 use pmsm_tests::trajectory::{Profile, Sample, Trajectory, motor_a};
 

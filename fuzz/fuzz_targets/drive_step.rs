@@ -3,10 +3,10 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState, StartupMode};
-use pmsm_core::num::Pu;
-use pmsm_core::observer::EstimatorKind;
-use pmsm_core::{Abc, Angle, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{
+    Abc, Angle, Drive, DriveConfig, DriveInput, DriveOptions, DriveState, EstimatorKind,
+    InverterParams, MotorParams, Pu, StartupMode,
+};
 
 fn word(b: &[u8]) -> i32 {
     let mut w = [0u8; 4];
@@ -19,15 +19,14 @@ fuzz_target!(|data: &[u8]| {
     let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
     m.rated_current_a = Some(2.53);
     let inv = InverterParams { vdc_v: 540.0, pwm_hz: 14e3, dead_time_s: 2e-6, current_full_scale_a: 10.0 };
-    let Ok(base) = PerUnit::new(&m, &inv, 14e3) else { return };
     let kind = [EstimatorKind::MrasCurrent, EstimatorKind::Nlo, EstimatorKind::Ao, EstimatorKind::MrasEmf][(head & 3) as usize];
-    let mut design = DriveDesign::default_for(&m, &inv, &base, kind);
-    design.startup = match (head >> 2) & 3 {
+    let startup = match (head >> 2) & 3 {
         0 => StartupMode::Ipd,
         1 => StartupMode::Align,
         _ => StartupMode::Known(Angle(word(rest))),
     };
-    let Ok(config) = DriveConfig::new(&m, &inv, 14e3, design) else { return };
+    let options = DriveOptions { estimator: kind, startup: Some(startup), ..DriveOptions::default() };
+    let Ok(config) = DriveConfig::from_params(&m, &inv, 14e3, options) else { return };
     let mut d = Drive::new(config);
     d.start();
     for chunk in rest.chunks(17) {

@@ -5,7 +5,7 @@
 
 use core::f64::consts::{PI, TAU};
 
-use pmsm_core::params::MotorParams;
+use pmsm_core::MotorParams;
 
 /// `√3`.
 pub const SQRT3: f64 = 1.732_050_807_568_877_2;
@@ -32,7 +32,7 @@ pub fn wrap(x: f64) -> f64 {
 // ---------------------------------------------------------------------------------------------
 
 /// Float64 current-model MRAS, SI units (A, V, rad, rad/s), with the same discretisation as
-/// `pmsm_core::observer::mras_current`: Strang splitting of the adjustable model into an exact
+/// `pmsm_core::MrasCurrent`: Strang splitting of the adjustable model into an exact
 /// R–L half step (ZOH), an exact rotation of the flux vector `(L_d î_d + ψ, L_q î_q)` by
 /// `−ω̂ T_s` (the frame turning), and a second R–L half step.
 #[derive(Clone, Copy, Debug)]
@@ -165,7 +165,7 @@ impl MrasRef {
 // PI, current loops, IP speed loop (equations.md §4.4)
 // ---------------------------------------------------------------------------------------------
 
-/// Float64 PI with output clamp and anti-windup, the algorithm of `pmsm_core::control::pi`:
+/// Float64 PI with output clamp and anti-windup, the algorithm of `pmsm_core::Pi`:
 /// `u_raw = ff + K_p e + I`; with `K_p > 0` back-calculation
 /// `I += K_i T_s e + k_t (clamp(u_raw) − u_raw)`, `k_t = min(1, K_i T_s/K_p)`; with `K_p = 0`
 /// conditional integration (no integration while `u_raw` is at a limit and `e` pushes
@@ -269,23 +269,7 @@ impl FocRef {
 // Motors and inverters of the tests
 // ---------------------------------------------------------------------------------------------
 
-/// Motor B of seed 001 (scenarios.md): 1.1 kW interior PMSM, rated 2.53 A RMS.
-pub fn motor_b() -> MotorParams {
-    let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-    m.rated_current_a = Some(2.53);
-    m.rated_speed_rpm = Some(3000.0);
-    m
-}
-
-/// Motor B's inverter: 540 V, SVPWM at 14 kHz, 2 µs dead time, ±10 A current sensing.
-pub fn inverter_b() -> pmsm_core::params::InverterParams {
-    pmsm_core::params::InverterParams {
-        vdc_v: 540.0,
-        pwm_hz: 14e3,
-        dead_time_s: 2e-6,
-        current_full_scale_a: 10.0,
-    }
-}
+pub use pmsm_core::fixtures::{inverter_b, motor_b};
 
 /// Rated torque current of motor B, A peak: 4 N·m / K_T.
 pub fn motor_b_rated_iq_a() -> f64 {

@@ -4,10 +4,10 @@
 //! continuous-time AO errors of seed 000 eq. 13–14.
 
 use crate::trajectory::Sample;
-use pmsm_core::observer::{Estimator, ObserverInput};
-use pmsm_core::params::MotorParams;
-use pmsm_core::units::{PerUnit, to_f64};
+use pmsm_core::MotorParams;
 use pmsm_core::{AlphaBeta, InverterParams};
+use pmsm_core::{Estimator, ObserverInput};
+use pmsm_core::{PerUnit, to_f64};
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// An estimate in SI units.
@@ -21,7 +21,7 @@ pub struct Est {
     pub emf_v: [f64; 2],
 }
 
-/// Mean EMF over an interval (see `pmsm_core::observer::emf`).
+/// Mean EMF over an interval (the EMF meter inside `pmsm_core::Ao` and `pmsm_core::Nlo`).
 #[derive(Clone, Debug)]
 pub struct RefMeter {
     r: f64,
@@ -44,7 +44,7 @@ impl RefMeter {
     }
 }
 
-/// Direction of rotation from the mean angle step (see `pmsm_core::observer::direction`).
+/// Direction of rotation from the mean angle step (the direction tracker inside `pmsm_core::Ao` and `pmsm_core::Nlo`).
 #[derive(Clone, Debug)]
 pub struct RefDirection {
     alpha: f64,
@@ -56,13 +56,13 @@ pub struct RefDirection {
 
 impl RefDirection {
     fn new(ts: f64, omega_b: f64) -> Self {
-        let shift = (pmsm_core::observer::direction::TIME_CONSTANT_S / ts)
+        let shift = (pmsm_core::DIRECTION_TIME_CONSTANT_S / ts)
             .log2()
             .round()
             .clamp(1.0, 16.0);
         Self {
             alpha: 0.5f64.powf(shift),
-            threshold_rad: pmsm_core::observer::direction::THRESHOLD_PU * omega_b * ts,
+            threshold_rad: pmsm_core::DIRECTION_THRESHOLD_PU * omega_b * ts,
             forward: true,
             prev: None,
             mean: 0.0,
@@ -92,8 +92,7 @@ impl RefDirection {
 fn estimate_from_emf(emf: [f64; 2], psi: f64, min_emf: f64, dir: &mut RefDirection) -> Est {
     let phi = emf[1].atan2(emf[0]);
     let mag = emf[0].hypot(emf[1]);
-    let flip = min_emf / pmsm_core::observer::nlo::MIN_EMF_PU
-        * pmsm_core::observer::direction::FLIP_SPEED_PU;
+    let flip = min_emf / pmsm_core::MIN_EMF_PU * pmsm_core::FLIP_SPEED_PU;
     let forward = dir.update(phi, mag > min_emf, mag < flip);
     let speed = emf[0].hypot(emf[1]) / psi;
     Est {
@@ -126,7 +125,7 @@ impl RefAo {
             dir: RefDirection::new(ts, omega_b),
             kappa: 1.0 - (-g * ts).exp(),
             psi: m.flux_wb,
-            min_emf: pmsm_core::observer::nlo::MIN_EMF_PU * m.flux_wb * omega_b,
+            min_emf: pmsm_core::MIN_EMF_PU * m.flux_wb * omega_b,
             emf: [0.0; 2],
         }
     }
@@ -171,7 +170,7 @@ impl RefNlo {
             friction: ts * m.b_nm_s / m.j_kg_m2,
             emf: [0.0; 2],
             u: [1.0, 0.0],
-            min_emf: pmsm_core::observer::nlo::MIN_EMF_PU * m.flux_wb * omega_b,
+            min_emf: pmsm_core::MIN_EMF_PU * m.flux_wb * omega_b,
             last_omega: 0.0,
         }
     }
@@ -228,7 +227,7 @@ impl RefMras {
             ao: RefAo::new(m, ts, g, omega_b),
             c,
             ts,
-            min_speed: pmsm_core::observer::mras_emf::MIN_SPEED_PU * omega_b,
+            min_speed: pmsm_core::MRAS_EMF_MIN_SPEED_PU * omega_b,
             model: [0.0; 2],
             integral: 0.0,
             last_omega: 0.0,

@@ -15,7 +15,7 @@
 //!
 //! Only linear magnetics: that is what the plant's accuracy is checked against.
 
-use pmsm_core::params::MotorParams;
+use pmsm_core::MotorParams;
 
 /// State of the reference: flux linkage (Wb), electrical angle (rad, continuous), speed.
 #[derive(Clone, Copy, Debug)]

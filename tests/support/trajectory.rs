@@ -3,7 +3,7 @@
 //! `v = R i + L di/dt + e` (equations.md §2.1, with optional EMF harmonics). This is how seed 000
 //! runs its observers: open loop, on the voltages and currents of a simulated drive.
 
-use pmsm_core::params::MotorParams;
+use pmsm_core::MotorParams;
 use std::f64::consts::PI;
 
 /// A speed profile through breakpoints `(t_s, ω_m rad/s)`, joined by raised-cosine

@@ -1,11 +1,11 @@
 //! Accuracy of the fixed-point numerics of `pmsm-core` against f64, over dense sweeps and
 //! random inputs across each function's whole input range.
 
-use pmsm_core::angle::{Angle, sin_cos};
-use pmsm_core::cordic::polar;
-use pmsm_core::frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park};
-use pmsm_core::num::Pu;
-use pmsm_core::units::to_f64;
+use pmsm_core::Pu;
+use pmsm_core::polar;
+use pmsm_core::to_f64;
+use pmsm_core::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park};
+use pmsm_core::{Angle, sin_cos};
 use pmsm_tests::signals::SplitMix;
 
 const PU_LSB: f64 = 1.0 / (1u64 << 24) as f64;

@@ -2,7 +2,7 @@
 
 use anyhow::{Result, anyhow};
 use pmsm_cli::motor_file;
-use pmsm_core::params::InverterParams;
+use pmsm_core::InverterParams;
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, Plant};
 use std::path::Path;
 use std::time::Instant;

@@ -3,7 +3,7 @@
 
 use anyhow::Result;
 use pmsm_cli::plot::{Panel, Series, write_svg};
-use pmsm_core::observer::{Ao, AoConfig, MrasEmf, MrasEmfConfig, Nlo, NloConfig};
+use pmsm_core::{Ao, AoConfig, MrasEmf, MrasEmfConfig, Nlo, NloConfig};
 use pmsm_tests::observers::{
     Est, RefAo, RefMras, RefNlo, ao_steady_errors, base, deg, run_fixed, run_ref,
 };
@@ -318,7 +318,7 @@ pub fn section() -> String {
                 TS,
                 1000.0,
                 b.omega_e_rad_s,
-                pmsm_core::observer::mras_emf::PAPER_CONSTANTS,
+                pmsm_core::MRAS_EMF_PAPER_CONSTANTS,
             );
             run_ref(|i, v| r.update(i, v), &s)
         },

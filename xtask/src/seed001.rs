@@ -7,8 +7,8 @@ use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, windo
 use pmsm_cli::commands::simulate::{draw, run_scenario};
 use pmsm_cli::scenario_file;
 use pmsm_cli::{motor_file, plot};
-use pmsm_core::ipd::{IpdConfig, IpdDesign};
 use pmsm_core::{InverterParams, PerUnit};
+use pmsm_core::{IpdConfig, IpdDesign};
 use std::path::Path;
 
 fn scenario(name: &str) -> Result<scenario_file::Scenario> {

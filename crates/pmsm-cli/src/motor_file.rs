@@ -24,7 +24,7 @@
 //! with one line naming the file, the line and the key.
 
 use anyhow::{Result, anyhow};
-use pmsm_core::params::{MotorParams, ParamError};
+use pmsm_core::{MotorParams, ParamError};
 use pmsm_plant::{MotorModel, Saturation};
 use serde::Deserialize;
 use std::path::Path;
@@ -71,7 +71,7 @@ struct RawSaturation {
 impl RawSaturation {
     /// The `[saturation]` table's model for the motor `params`.
     fn into_saturation(self, params: &MotorParams) -> Result<Saturation, ParamError> {
-        use pmsm_core::params::ParamReason;
+        use pmsm_core::ParamReason;
         match self.model.as_str() {
             "none" => {
                 if self.psi_s_wb.is_some() {
@@ -120,7 +120,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Motor> {
 impl RawMotor {
     /// Validates the values and builds the plant model; the error names the key.
     pub fn into_motor(self, default_name: &str) -> Result<Motor, ParamError> {
-        use pmsm_core::params::{ParamReason, in_range};
+        use pmsm_core::{ParamReason, in_range};
         let pole_pairs = u32::try_from(self.pole_pairs)
             .ok()
             .filter(|p| (1..=100).contains(p))

@@ -3,7 +3,7 @@
 
 use pmsm_cli::commands::simulate::{Run, run_scenario};
 use pmsm_cli::scenario_file;
-use pmsm_core::drive::DriveState;
+use pmsm_core::DriveState;
 use std::path::Path;
 
 fn examples() -> std::path::PathBuf {

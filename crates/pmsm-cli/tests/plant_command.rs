@@ -5,7 +5,7 @@
 mod common;
 
 use common::{one_line_error, pmsm as run_pmsm, s as p, scratch};
-use pmsm_core::params::MotorParams;
+use pmsm_core::MotorParams;
 use pmsm_tests::reference::{RefMotor, RefState};
 use pmsm_tests::signals::{VoltageRow, random_steps, vf_ramp_with_steps};
 use std::fmt::Write as _;

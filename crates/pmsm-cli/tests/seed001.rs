@@ -5,7 +5,7 @@
 use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, window};
 use pmsm_cli::commands::simulate::{Run, run_scenario};
 use pmsm_cli::scenario_file::{self, Scenario};
-use pmsm_core::drive::DriveState;
+use pmsm_core::DriveState;
 use std::path::{Path, PathBuf};
 
 fn example(name: &str) -> PathBuf {

@@ -11,7 +11,6 @@
 //! `docs/PERFORMANCE.md`.
 
 use crate::angle::Angle;
-use crate::frames::AlphaBeta;
 use crate::num::{Pu, round_shift_sat};
 
 /// Rotations performed. The residual angle is at most atan 2⁻⁽ᴺ⁻¹⁾ plus rounding.
@@ -133,16 +132,6 @@ pub fn polar(x: Pu, y: Pu) -> Polar {
         magnitude: Pu::from_bits(magnitude),
         angle: Angle(z as i32),
     }
-}
-
-/// `atan2(y, x)` as an [`Angle`]; zero for the zero vector.
-pub fn atan2(y: Pu, x: Pu) -> Angle {
-    polar(x, y).angle
-}
-
-/// `|v|` of an αβ vector, saturated to the [`Pu`] range.
-pub fn magnitude(v: AlphaBeta) -> Pu {
-    polar(v.alpha, v.beta).magnitude
 }
 
 #[cfg(test)]

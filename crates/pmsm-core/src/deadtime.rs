@@ -245,13 +245,23 @@ impl DeadTimeConfig {
 
     /// [`DeadTimeConfig::error_vector`] with the bus terms cached (see
     /// [`DeadTimeConfig::error_vector_abc_cached`]).
-    pub fn error_vector_cached(&self, i: AlphaBeta, vdc: Pu, cache: &mut DeadTimeBus) -> AlphaBeta {
+    pub(crate) fn error_vector_cached(
+        &self,
+        i: AlphaBeta,
+        vdc: Pu,
+        cache: &mut DeadTimeBus,
+    ) -> AlphaBeta {
         self.error_vector_abc_cached(inverse_clarke(i), vdc, cache)
     }
 
     /// [`DeadTimeConfig::error_vector_abc`], bit for bit, with the bus terms `V_dead/3` and
     /// `V_dead/√3` taken from `cache` when `vdc` is the reading they were computed for.
-    pub fn error_vector_abc_cached(&self, i: Abc, vdc: Pu, cache: &mut DeadTimeBus) -> AlphaBeta {
+    pub(crate) fn error_vector_abc_cached(
+        &self,
+        i: Abc,
+        vdc: Pu,
+        cache: &mut DeadTimeBus,
+    ) -> AlphaBeta {
         let bits = vdc.to_bits();
         // The empty cache (reading 0) holds what a reading of 0 gives: V_dead = 0.
         if bits != cache.vdc {
@@ -278,7 +288,7 @@ impl DeadTimeConfig {
     /// compensates the command, else `v_ref`.
     pub fn command(&self, v_ref: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
         if self.design.mode.compensates_command() {
-            add(v_ref, v_dt)
+            v_ref.saturating_add(v_dt)
         } else {
             v_ref
         }
@@ -289,10 +299,7 @@ impl DeadTimeConfig {
     /// estimator (eq. 9), else `v_cmd`.
     pub fn estimator_voltage(&self, v_cmd: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
         if self.design.mode.corrects_estimator() {
-            AlphaBeta {
-                alpha: v_cmd.alpha.saturating_sub(v_dt.alpha),
-                beta: v_cmd.beta.saturating_sub(v_dt.beta),
-            }
+            v_cmd.saturating_sub(v_dt)
         } else {
             v_cmd
         }
@@ -302,7 +309,7 @@ impl DeadTimeConfig {
 /// The bus terms of the dead-time vector for the last bus reading seen (see
 /// [`DeadTimeConfig::error_vector_abc_cached`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct DeadTimeBus {
+pub(crate) struct DeadTimeBus {
     vdc: i32,
     /// `V_dead/3`, Q8.26.
     third: i32,
@@ -314,30 +321,17 @@ pub struct DeadTimeBus {
 const SIGN_ONE: i32 = 1 << 28;
 /// `4/3` in Q2.30 (Q4.28 sign sum to Q2.30, divided by 3).
 const FOUR_THIRDS_Q30: i32 = 1_431_655_765;
-/// `4/√3` in Q3.29 (Q4.28 sign difference to Q2.30, divided by √3).
-const FOUR_INV_SQRT3_Q29: i32 = 1_239_850_262;
-
-fn add(a: AlphaBeta, b: AlphaBeta) -> AlphaBeta {
-    AlphaBeta {
-        alpha: a.alpha.saturating_add(b.alpha),
-        beta: a.beta.saturating_add(b.beta),
-    }
-}
+/// `4/√3` in Q3.29 (Q4.28 sign difference to Q2.30, divided by √3): the bits of `1/√3` in
+/// Q1.31.
+const FOUR_INV_SQRT3_Q29: i32 = crate::num::INV_SQRT3_Q31;
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn setup(mode: DeadTimeMode) -> (DeadTimeConfig, PerUnit) {
-        let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-        m.rated_current_a = Some(2.53);
-        let inv = InverterParams {
-            vdc_v: 540.0,
-            pwm_hz: 14e3,
-            dead_time_s: 2e-6,
-            current_full_scale_a: 10.0,
-        };
-        let base = PerUnit::new(&m, &inv, 14e3).unwrap();
+        let (m, inv) = (crate::fixtures::motor_b(), crate::fixtures::inverter_b());
+        let base = crate::fixtures::base_b();
         let mut d = DeadTimeDesign::default_for(&m, &inv);
         d.mode = mode;
         (DeadTimeConfig::new(&inv, &base, d).unwrap(), base)

@@ -1,26 +1,70 @@
 //! Fixed-point sensorless field-oriented control of permanent-magnet synchronous motors.
 //!
-//! `no_std`, no allocation, no floating point on the control path. Configuration is computed
-//! once in `f64` from SI parameters ([`params`]) into per-unit fixed-point coefficients
-//! ([`units`]); the hot path is integer arithmetic on the formats of [`num`], which saturates
-//! instead of wrapping. Angles are wrapping integer turns ([`angle`]).
+//! `no_std`, no allocation, no floating point on the control path. A drive is configured once
+//! in `f64` from SI parameters ([`MotorParams`], [`InverterParams`]) into per-unit fixed-point
+//! coefficients ([`PerUnit`], [`DriveConfig`]); each [`Drive::step`] is then integer arithmetic
+//! on [`Pu`] (Q8.24) and [`Unit`] (Q2.30) signals, which saturates instead of wrapping. Angles
+//! are wrapping integer turns ([`Angle`]).
 //!
-//! | module | contents |
-//! |---|---|
-//! | [`num`] | Q formats (`Pu` = Q8.24, `Unit` = Q2.30), rounding, saturating products |
-//! | [`angle`] | `Angle` (one turn = 2³²), sin/cos |
-//! | [`cordic`] | atan2 and magnitude by CORDIC |
-//! | [`frames`] | `Abc`, `AlphaBeta`, `Dq`; Clarke, Park and their inverses |
-//! | [`units`] | per-unit bases from motor and inverter, the supported envelope |
-//! | [`params`] | motor and inverter parameters (SI) and their validation |
-//! | [`observer`] | the `Estimator` interface and the estimators (NLO, AO, MRAS on the EMF, MRAS on the current model) |
-//! | [`svpwm`] | space-vector modulation with the circle limit |
-//! | [`deadtime`] | dead-time compensation (seed 001 eq. 6–9) |
-//! | [`control`] | PI current loops and the IP speed loop, with anti-windup |
-//! | [`ipd`] | initial rotor position from voltage pulses, with N/S polarity |
-//! | [`drive`] | the drive: state machine and data flow of one control step |
-//! | [`recorder`] | the fault recorder: the last samples before a fault, per unit |
-//! | [`hal`] | the narrow hardware traits a board binding implements (PWM, current sampling) |
+//! ```
+//! use pmsm_core::{
+//!     Abc, Angle, Drive, DriveConfig, DriveInput, DriveOptions, DriveState, InverterParams,
+//!     MotorParams, StartupMode,
+//! };
+//!
+//! // A 1.1 kW interior motor on a 540 V inverter switching at 14 kHz.
+//! let mut motor = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
+//! motor.rated_current_a = Some(2.53);
+//! let inverter = InverterParams {
+//!     vdc_v: 540.0,
+//!     pwm_hz: 14e3,
+//!     dead_time_s: 2e-6,
+//!     current_full_scale_a: 10.0,
+//! };
+//! // The current-model MRAS (the default estimator), started at a known rotor angle.
+//! let options = DriveOptions {
+//!     startup: Some(StartupMode::Known(Angle::ZERO)),
+//!     ..DriveOptions::default()
+//! };
+//! let config = DriveConfig::from_params(&motor, &inverter, 14e3, options)?;
+//! let base = config.base;
+//! let mut drive = Drive::new(config);
+//! drive.set_speed_ref(base.speed_pu(100.0));
+//! drive.start();
+//! assert_eq!(drive.state(), DriveState::Run);
+//!
+//! // One step per PWM period: the sampled phase currents and bus in, three duties out.
+//! let input = DriveInput {
+//!     i_abc: Abc::default(),
+//!     vdc: base.voltage_pu(540.0),
+//! };
+//! for _ in 0..10 {
+//!     let out = drive.step(&input);
+//!     assert!(out.pwm_on);
+//!     let [a, b, c] = out.duties.to_f64();
+//!     assert!([a, b, c].iter().all(|d| (0.0..=1.0).contains(d)));
+//! }
+//! // At rest with a positive speed reference, the speed loop asks for positive torque.
+//! assert!(drive.telemetry().i_ref.q > pmsm_core::Pu::ZERO);
+//! # Ok::<(), pmsm_core::ConfigError>(())
+//! ```
+//!
+//! What is where:
+//!
+//! - the drive: [`Drive`], [`DriveConfig`] (from [`DriveOptions`] or a full [`DriveDesign`]),
+//!   its states and faults, and the hardware traits a board implements ([`ThreePhasePwm`],
+//!   [`PhaseCurrentSampler`], [`control_step`]);
+//! - the estimators behind [`Estimator`]: [`Nlo`], [`Ao`], [`MrasEmf`] (Solsona, Valla,
+//!   Muravchik (2000)) and [`MrasCurrent`] (Khlaief, Boussak, Gossa (2012)), each built from its
+//!   configuration of coefficients;
+//! - the parts of a step, usable alone: [`clarke`], [`park`] and their inverses, the current
+//!   and speed loops ([`CurrentController`], [`SpeedController`], [`Pi`]), dead-time
+//!   compensation ([`DeadTimeConfig`]), space-vector modulation ([`SvpwmConfig`]) and the
+//!   initial position detection ([`Ipd`]);
+//! - the fault recorder ([`FaultRecorder`]): the last samples before a fault, per unit, for a
+//!   replay on the host;
+//! - numbers: [`Pu`], [`Unit`], [`Angle`], [`polar`] (CORDIC), and the per-unit bases
+//!   [`PerUnit`].
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -34,27 +78,59 @@
     )
 )]
 
-pub mod angle;
-pub mod control;
-pub mod cordic;
-pub mod deadtime;
+mod angle;
+mod control;
+mod cordic;
+mod deadtime;
 #[cfg(feature = "defmt")]
 mod defmt_impls;
-pub mod drive;
-pub mod error;
-pub mod frames;
-pub mod hal;
-pub mod ipd;
-pub mod num;
-pub mod observer;
-pub mod params;
-pub mod recorder;
-pub mod svpwm;
-pub mod units;
+mod drive;
+mod error;
+#[cfg(any(test, feature = "fixtures"))]
+pub mod fixtures;
+mod frames;
+mod hal;
+mod ipd;
+mod num;
+mod observer;
+mod params;
+mod recorder;
+mod sqrt;
+mod svpwm;
+mod units;
 
-pub use angle::{Angle, SinCos};
+pub use angle::{Angle, SinCos, sin_cos};
+pub use control::{
+    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, Pi, PiConfig,
+    PiOutput, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
+};
+pub use cordic::{Polar, polar};
+pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
+pub use drive::{
+    Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput, DriveState, Fault,
+    OpenLoopDesign, Protection, StartupMode, Telemetry,
+};
 pub use error::ConfigError;
-pub use frames::{Abc, AlphaBeta, Dq};
-pub use num::{Pu, Unit};
-pub use params::{InverterParams, MotorParams, ParamError};
-pub use units::PerUnit;
+pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};
+pub use hal::{DutyCyclePwm, PhaseCurrentSampler, PwmErrors, ThreePhasePwm, apply, control_step};
+pub use ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdOutput, IpdResult};
+pub use num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64};
+pub use observer::direction::{
+    FLIP_SPEED_PU, THRESHOLD_PU as DIRECTION_THRESHOLD_PU,
+    TIME_CONSTANT_S as DIRECTION_TIME_CONSTANT_S,
+};
+pub use observer::emf::MIN_EMF_PU;
+pub use observer::mras_emf::{
+    MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU, PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
+};
+pub use observer::{
+    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MAX_GAIN_TS,
+    MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, Nlo, NloConfig,
+    ObserverInput, default_observer_gain,
+};
+pub use params::{
+    InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative, positive,
+};
+pub use recorder::{FaultRecorder, FaultSample};
+pub use svpwm::{Duties, SvpwmConfig, SvpwmOutput};
+pub use units::{PerUnit, to_f64};

@@ -38,11 +38,11 @@
 
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, inverse_clarke};
-use crate::num::{Pu, Reciprocal, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, umul, wmul};
+use crate::num::{
+    INV_SQRT3_Q31, Pu, Reciprocal, UNIT_FRAC, Unit, pu_from_f64, round_shift_sat, umul, wmul,
+};
 use crate::params::in_range;
-
-/// `1/√3` in Q1.31 (rounded).
-const INV_SQRT3_Q31: i32 = 1_239_850_262;
+use crate::sqrt::rsqrt;
 
 /// Default smallest bus voltage the modulator divides by: 1 % of nominal, per unit.
 pub const DEFAULT_VDC_MIN_PU: f64 = 0.01 * 1.732_050_807_568_877_2;
@@ -59,7 +59,8 @@ pub struct SvpwmConfig {
 }
 
 impl Default for SvpwmConfig {
-    /// Full linear range (`m = 1`), [`DEFAULT_VDC_MIN_PU`].
+    /// Full linear range (`m = 1`); the bus is taken as lost below 1 % of nominal
+    /// (`0.01 √3` per unit).
     fn default() -> Self {
         Self {
             vmax_per_vdc_q31: INV_SQRT3_Q31,
@@ -95,8 +96,8 @@ impl SvpwmConfig {
     }
 
     /// Duties for the stationary voltage `v` on the bus `vdc` (both per unit of `V_b`).
-    /// Integer only; never panics. Takes the bus's reciprocal at every call; a caller that modulates
-    /// every sample keeps a [`BusReciprocal`] and calls [`SvpwmConfig::modulate_cached`].
+    /// Integer only; never panics. Takes the bus's reciprocal at every call (the drive keeps
+    /// it from one sample to the next while the bus reading does not change).
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
         self.modulate_cached(v, vdc, &mut BusReciprocal::default())
     }
@@ -104,7 +105,12 @@ impl SvpwmConfig {
     /// [`SvpwmConfig::modulate`], bit for bit, with `1/v_dc` and the circle's radius taken
     /// from `cache` when the bus reading is the one they were computed for (a 32-bit division
     /// and four products saved) and recomputed and stored otherwise.
-    pub fn modulate_cached(&self, v: AlphaBeta, vdc: Pu, cache: &mut BusReciprocal) -> SvpwmOutput {
+    pub(crate) fn modulate_cached(
+        &self,
+        v: AlphaBeta,
+        vdc: Pu,
+        cache: &mut BusReciprocal,
+    ) -> SvpwmOutput {
         if vdc <= self.vdc_min {
             return SvpwmOutput {
                 duties: Duties::HALF,
@@ -148,7 +154,7 @@ impl SvpwmConfig {
 /// What the modulator needs of the last bus reading seen: the circle's radius and the
 /// reading's [`Reciprocal`], recomputed only when the reading changes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct BusReciprocal {
+pub(crate) struct BusReciprocal {
     /// The bus reading (bits of [`Pu`]) the rest belongs to; 0 when empty (never a valid bus).
     vdc: i32,
     /// `1/v_dc`: `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`].
@@ -181,31 +187,6 @@ impl BusReciprocal {
     fn fraction(self, x: i32) -> i32 {
         self.recip.fraction(x)
     }
-}
-
-/// `1/√X` in Q2.30 at the centres of 24 intervals of `X ∈ [1/4, 1)` (seed of [`rsqrt`]).
-const RSQRT_SEED: [u32; 24] = [
-    2083365155, 1970666148, 1874477404, 1791125178, 1717986918, 1653133683, 1595110809, 1542797797,
-    1495315679, 1451963954, 1412176548, 1375490368, 1341522400, 1309952745, 1280511845, 1252970736,
-    1227133513, 1202831433, 1179918260, 1158266544, 1137764631, 1118314230, 1099828424, 1082230034,
-];
-
-/// `2³⁰/√X` for `x = X·2³²`, `x ∈ [2³⁰, 2³²)`: a table seed within 3 %, then three Newton
-/// steps `y ← y (3 − X y²)/2`, each squaring the relative error (3 % → 1.4e−3 → 2.7e−6 →
-/// the 2⁻³⁰ of the arithmetic). Newton from either side ends below `1/√X`, so the result
-/// never exceeds it by more than the seed's rounding.
-#[inline]
-fn rsqrt(x: u32) -> u32 {
-    let k = ((x >> 27) as usize).saturating_sub(8);
-    let mut y = RSQRT_SEED.get(k).copied().unwrap_or(1 << 30);
-    for _ in 0..3 {
-        // X y² in Q2.30 (y² in Q3.29 first: y ≤ 2.02 · 2³⁰).
-        let y2 = (umul(y, y) >> 31) as u32;
-        let xy2 = (umul(x, y2) >> 31) as u32;
-        let f = (3u32 << 30).saturating_sub(xy2);
-        y = (umul(y, f) >> 31) as u32;
-    }
-    y
 }
 
 /// `v` limited to the circle of radius `v_max` keeping its angle, and whether it was
@@ -324,13 +305,6 @@ mod tests {
     }
 
     proptest! {
-        #[test]
-        fn rsqrt_within_four_lsb(x in (1u32 << 30)..=u32::MAX) {
-            let exact = (1u64 << 30) as f64 / (x as f64 / 4_294_967_296.0).sqrt();
-            let got = rsqrt(x) as f64;
-            prop_assert!((got - exact).abs() <= 4.0, "{} {}", got, exact);
-        }
-
         /// Any input: duties in [0, 1] and the commanded vector inside the circle (within 2 LSB
         /// and the 1e−8 relative error of the CORDIC magnitude).
         #[test]

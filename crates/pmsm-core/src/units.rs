@@ -205,8 +205,7 @@ mod tests {
         a.kt_nm_per_a = 1.108;
         let pa = PerUnit::new(&a, &inverter(300.0, 40.0), 20e3).unwrap();
         assert!((pa.flux_wb - 0.288).abs() < 1e-12);
-        let mut b = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-        b.rated_current_a = Some(2.53);
+        let b = crate::fixtures::motor_b();
         PerUnit::new(&b, &inverter(540.0, 10.0), 1.0 / 150e-6).unwrap();
         PerUnit::new(&b, &inverter(540.0, 10.0), 14e3).unwrap();
     }

@@ -5,11 +5,11 @@ use crate::types::{
     pmsm_config_t, pmsm_deadtime_t, pmsm_estimator_t, pmsm_startup_t, pmsm_status_t,
 };
 use core::f64::consts::TAU;
-use pmsm_core::deadtime::DeadTimeMode;
-use pmsm_core::drive::{DriveConfig, DriveDesign, DriveState, Fault, StartupMode};
-use pmsm_core::ipd::IpdFault;
-use pmsm_core::observer::EstimatorKind;
+use pmsm_core::DeadTimeMode;
+use pmsm_core::EstimatorKind;
+use pmsm_core::IpdFault;
 use pmsm_core::{Angle, ConfigError, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{DriveConfig, DriveDesign, DriveState, Fault, StartupMode};
 
 /// Why a configuration was rejected.
 #[derive(Clone, Copy, Debug)]

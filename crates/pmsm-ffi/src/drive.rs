@@ -8,8 +8,8 @@ use crate::types::*;
 use core::ffi::{c_char, c_void};
 use core::mem::{align_of, size_of};
 use pmsm_core::Abc;
-use pmsm_core::drive::{Drive, DriveInput};
-use pmsm_core::num::Pu;
+use pmsm_core::Pu;
+use pmsm_core::{Drive, DriveInput};
 
 /// Bytes of storage a drive needs (`<= PMSM_STORAGE_SIZE`).
 #[unsafe(no_mangle)]

@@ -8,7 +8,7 @@
 
 use crate::types::{PMSM_STORAGE_SIZE, PMSM_STORAGE_WORDS, pmsm_status_t};
 use core::mem::{align_of, size_of};
-use pmsm_core::drive::Drive;
+use pmsm_core::Drive;
 
 /// A drive, in caller-provided storage. Opaque to C.
 #[derive(Debug)]

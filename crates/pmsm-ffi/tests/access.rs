@@ -8,10 +8,10 @@ mod common;
 use common::scenario::{self, CMD_CLEAR_FAULT, CMD_START, CMD_STOP, FAULT_STEP, Word};
 use core::ffi::CStr;
 use core::ptr::null_mut;
-use pmsm_core::angle::Angle;
-use pmsm_core::drive::{DriveState, Fault};
-use pmsm_core::ipd::IpdFault;
-use pmsm_core::num::Pu;
+use pmsm_core::Angle;
+use pmsm_core::IpdFault;
+use pmsm_core::Pu;
+use pmsm_core::{DriveState, Fault};
 use pmsm_ffi::*;
 
 fn init(s: &mut pmsm_storage_t, c: &pmsm_config_t) -> Result<*mut pmsm_drive_t, pmsm_status_t> {
@@ -409,8 +409,8 @@ fn a_negative_current_scale_flips_the_sign() {
 
 #[test]
 fn a_drive_without_ipd_start_refuses_to_pulse_if_forced_to() {
-    use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, StartupMode};
-    use pmsm_core::observer::EstimatorKind;
+    use pmsm_core::EstimatorKind;
+    use pmsm_core::{Drive, DriveConfig, DriveDesign, DriveInput, StartupMode};
     use pmsm_core::{InverterParams, PerUnit};
     // Motor B on 48 V: its IPD design is not reachable, and not checked for an ALIGN start.
     let m = scenario::motor_b();

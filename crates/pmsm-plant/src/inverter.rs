@@ -25,9 +25,7 @@
 //! between the commanded and the applied αβ voltage (seed 001 eq. 9), and has length
 //! `(4/3) V_dead` whenever no current is near zero.
 
-use pmsm_core::params::{
-    InverterParams, ParamError, ParamReason, in_range, non_negative, positive,
-};
+use pmsm_core::{InverterParams, ParamError, ParamReason, in_range, non_negative, positive};
 
 use crate::motor::Motor;
 use crate::{PlantError, clarke};

@@ -33,7 +33,7 @@
 //! Motor B of seed 001 on its 540 V, 14 kHz inverter, one PWM period:
 //!
 //! ```
-//! use pmsm_core::params::{InverterParams, MotorParams};
+//! use pmsm_core::{InverterParams, MotorParams};
 //! use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, MotorModel, Plant};
 //!
 //! let mut params = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
@@ -61,7 +61,7 @@
 
 use core::fmt;
 
-use pmsm_core::params::ParamError;
+use pmsm_core::ParamError;
 
 pub mod inverter;
 pub mod motor;

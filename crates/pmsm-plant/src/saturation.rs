@@ -27,7 +27,7 @@
 //! `i ψ_d(i) − (ψ_s²/L_d0)(G(u) − G(u_0))` with `G = ln cosh` on the tanh branch and `u²/2` on
 //! the linear one); the magnet flux contributes nothing at `i_d = 0`.
 
-use pmsm_core::params::{MotorParams, ParamError, ParamReason, in_range};
+use pmsm_core::{MotorParams, ParamError, ParamReason, in_range};
 
 /// Strength `k` of the default saturation: `ψ_s = ψ + k L_d I_ref`.
 ///
@@ -225,11 +225,7 @@ fn ln_cosh(u: f64) -> f64 {
 mod tests {
     use super::*;
 
-    fn motor_b() -> MotorParams {
-        let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-        m.rated_current_a = Some(2.53);
-        m
-    }
+    use pmsm_core::fixtures::motor_b;
 
     #[test]
     fn nominal_values_exact_at_zero() {

@@ -238,7 +238,7 @@ fn switching_period_average_equals_averaged_model_at_any_duty() {
     // applied: v̄ = L Δi / T + R ī. It must equal the averaged model, also for duties whose
     // pulse is shorter than the dead time (0.01, 0.02 < δ = 0.028) or whose off time is, where
     // the dead time runs across the period boundary.
-    use pmsm_core::params::MotorParams;
+    use pmsm_core::MotorParams;
     use pmsm_plant::MotorState;
     let (l, r) = (1000.0, 1e-3);
     let load = MotorParams::new(1, r, l, l, 1e-3, 1.0, 0.0);

@@ -5,7 +5,7 @@ mod common;
 
 use common::{motor_a, motor_b, rel};
 use core::f64::consts::PI;
-use pmsm_core::params::MotorParams;
+use pmsm_core::MotorParams;
 use pmsm_plant::motor::{Mechanics, Motor, MotorModel, MotorState};
 use pmsm_plant::{PlantError, Saturation, inverse_park};
 

@@ -2,10 +2,10 @@
 //! through a divider; the current channels' offset calibration; a potentiometer as a speed
 //! knob. Coefficients are computed once in floating point; the conversions are integer.
 
+use pmsm_core::Abc;
+use pmsm_core::DriveInput;
+use pmsm_core::PU_FRAC;
 use pmsm_core::Pu;
-use pmsm_core::drive::DriveInput;
-use pmsm_core::frames::Abc;
-use pmsm_core::num::PU_FRAC;
 
 /// Why a scaling cannot be made.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

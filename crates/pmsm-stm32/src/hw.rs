@@ -10,8 +10,8 @@ use crate::adc::{RawSample, Scaling};
 use crate::regs;
 use crate::timing::{DeadTime, PwmTiming};
 use crate::{PhaseCurrentSampler, ThreePhasePwm};
-use pmsm_core::drive::DriveInput;
-use pmsm_core::svpwm::Duties;
+use pmsm_core::DriveInput;
+use pmsm_core::Duties;
 use stm32g4::stm32g431 as pac;
 
 /// The system clock after [`clock_170mhz`], Hz.

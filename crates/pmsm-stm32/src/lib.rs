@@ -13,8 +13,8 @@
 //! prescaler and period for a frequency, dead-time register encoding, ADC scaling to per unit,
 //! offset calibration, the speed knob, and the register values the `hw` module writes.
 //!
-//! The traits are the core's ([`pmsm_core::hal`], re-exported here); this crate implements
-//! them for TIM1 and the ADCs.
+//! The traits are the core's ([`ThreePhasePwm`], [`PhaseCurrentSampler`], re-exported here);
+//! this crate implements them for TIM1 and the ADCs.
 #![no_std]
 
 pub mod adc;
@@ -25,17 +25,17 @@ pub mod timing;
 #[allow(unsafe_code)]
 pub mod hw;
 
-pub use pmsm_core::hal::{PhaseCurrentSampler, ThreePhasePwm, apply, control_step};
+pub use pmsm_core::{PhaseCurrentSampler, ThreePhasePwm, apply, control_step};
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use pmsm_core::Abc;
     use pmsm_core::Pu;
-    use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, DriveState};
-    use pmsm_core::observer::EstimatorKind;
-    use pmsm_core::svpwm::Duties;
-    use pmsm_core::{InverterParams, MotorParams, PerUnit};
+    use pmsm_core::{
+        Drive, DriveConfig, DriveInput, DriveOptions, DriveState, Duties, InverterParams,
+        MotorParams,
+    };
 
     #[derive(Default)]
     struct MockPwm {
@@ -79,9 +79,7 @@ mod tests {
             dead_time_s: 0.5e-6,
             current_full_scale_a: 60.0,
         };
-        let base = PerUnit::new(&m, &inv, 20e3).unwrap();
-        let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
-        Drive::new(DriveConfig::new(&m, &inv, 20e3, design).unwrap())
+        Drive::new(DriveConfig::from_params(&m, &inv, 20e3, DriveOptions::default()).unwrap())
     }
 
     #[test]

@@ -94,12 +94,12 @@ impl DeadTime {
 
 /// DTG for at least `ticks` t_DTS (RM0440 TIMx_BDTR.DTG):
 ///
-/// | DTG[7:5] | dead time            | range, t_DTS |
+/// | DTG\[7:5\] | dead time            | range, t_DTS |
 /// |---|---|---|
-/// | 0xx      | DTG[7:0]             | 0–127     |
-/// | 10x      | (64 + DTG[5:0]) · 2  | 128–254   |
-/// | 110      | (32 + DTG[4:0]) · 8  | 256–504   |
-/// | 111      | (32 + DTG[4:0]) · 16 | 512–1008  |
+/// | 0xx      | DTG\[7:0\]             | 0–127     |
+/// | 10x      | (64 + DTG\[5:0\]) · 2  | 128–254   |
+/// | 110      | (32 + DTG\[4:0\]) · 8  | 256–504   |
+/// | 111      | (32 + DTG\[4:0\]) · 16 | 512–1008  |
 pub fn encode_dtg(ticks: u64) -> Option<u8> {
     if ticks <= 127 {
         Some(ticks as u8)

@@ -40,10 +40,7 @@ mod app {
     use super::{board, halt, motor};
     use cortex_m::peripheral::DWT;
     use heapless::spsc::Queue;
-    use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveState};
-    use pmsm_core::observer::EstimatorKind;
-    use pmsm_core::recorder::FaultRecorder;
-    use pmsm_core::{PerUnit, Pu};
+    use pmsm_core::{Drive, DriveConfig, DriveOptions, DriveState, FaultRecorder, Pu};
     use pmsm_stm32::adc::{KnobCommand, OffsetCalibration, Scaling, SpeedKnob};
     use pmsm_stm32::hw::{self, InjectedAdc, Tim1Pwm};
     use pmsm_stm32::timing::{DeadTime, PwmTiming};
@@ -160,17 +157,14 @@ mod app {
         // Configuration (floating point, once).
         let (m, inv) = (motor::motor(), motor::inverter());
         let sample_hz = motor::PWM_HZ as f64;
-        let Ok(base) = PerUnit::new(&m, &inv, sample_hz) else {
-            halt("motor.rs: the motor is outside the fixed-point envelope");
-        };
-        let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
-        let config = match DriveConfig::new(&m, &inv, sample_hz, design) {
+        let config = match DriveConfig::from_params(&m, &inv, sample_hz, DriveOptions::default()) {
             Ok(c) => c,
             Err(e) => {
                 defmt::error!("drive configuration: {}", e);
                 halt("motor.rs: the drive configuration failed");
             }
         };
+        let base = config.base;
         let (Ok(current), Ok(voltage)) = (
             board::CURRENT.scale(base.current_a),
             board::VBUS.scale(base.voltage_v),

@@ -9,15 +9,15 @@
 //! row per control sample, oldest first; the last row is the sample at which the drive
 //! tripped. The SI values are the recorder's per-unit words times the drive's bases.
 //!
-//! [`DriveState::code`]: pmsm_core::drive::DriveState::code
+//! [`DriveState::code`]: pmsm_core::DriveState::code
 
 use super::simulate::Row;
 use crate::csv_io;
 use anyhow::Result;
+use pmsm_core::FaultRecorder;
 use pmsm_core::PerUnit;
-use pmsm_core::drive::{Drive, DriveInput, Fault};
-use pmsm_core::frames::clarke;
-use pmsm_core::recorder::FaultRecorder;
+use pmsm_core::clarke;
+use pmsm_core::{Drive, DriveInput, Fault};
 use std::f64::consts::TAU;
 use std::path::Path;
 

@@ -8,8 +8,8 @@
 
 use crate::{motor_file, plot};
 use anyhow::{Result, anyhow, bail};
-use pmsm_core::ipd::{Ipd, IpdConfig, IpdDesign, IpdFault};
 use pmsm_core::{AlphaBeta, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{Ipd, IpdConfig, IpdDesign, IpdFault};
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, Plant};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};

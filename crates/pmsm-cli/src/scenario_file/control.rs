@@ -1,7 +1,7 @@
 //! `[control]`: the estimator, the start-up, dead-time compensation, and the overrides of
 //! the drive's default design (gains, bandwidths, limits, the model's errors).
 
-use pmsm_core::params::{ParamError, in_range, positive};
+use pmsm_core::{ParamError, in_range, positive};
 use serde::Deserialize;
 
 /// Estimators a drive can use.

@@ -3,7 +3,7 @@
 
 use crate::motor_file::{self, Motor, RawMotor};
 use anyhow::{Result, anyhow};
-use pmsm_core::params::{ParamError, in_range, non_negative, positive};
+use pmsm_core::{ParamError, in_range, non_negative, positive};
 use serde::Deserialize;
 use std::path::Path;
 

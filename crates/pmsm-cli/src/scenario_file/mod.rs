@@ -57,7 +57,7 @@ pub use profiles::Breakpoints;
 use crate::motor_file::{Motor, toml_error};
 use anyhow::{Result, anyhow, bail};
 use hardware::MotorRef;
-use pmsm_core::params::{ParamError, in_range};
+use pmsm_core::{ParamError, in_range};
 use profiles::{RawBreakpoints, RawInitial, breakpoints};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};

@@ -1,6 +1,6 @@
 //! The time course of a scenario: `[initial]` state, `[speed_ref]` and `[load]` profiles.
 
-use pmsm_core::params::{ParamError, ParamReason, in_range, non_negative};
+use pmsm_core::{ParamError, ParamReason, in_range, non_negative};
 use serde::Deserialize;
 
 #[derive(Deserialize, Default)]

@@ -206,7 +206,7 @@ impl Pi {
     /// [`Pi::commit`]). A caller with a costly exact limit evaluates with a cheap inner
     /// bound first, and again with the exact limit only when the second value is false.
     #[inline(always)]
-    pub fn eval(&self, e: Pu, ff: Pu, m: Pu, hold: bool) -> (PiOutput, bool, i64) {
+    pub(crate) fn eval(&self, e: Pu, ff: Pu, m: Pu, hold: bool) -> (PiOutput, bool, i64) {
         let c = self.config;
         let (eb, ffb) = (e.to_bits(), ff.to_bits());
         let hi = m.to_bits().max(0);
@@ -260,7 +260,7 @@ impl Pi {
 
     /// Stores a new integral state returned by [`Pi::eval`].
     #[inline(always)]
-    pub fn commit(&mut self, integ: i64) {
+    pub(crate) fn commit(&mut self, integ: i64) {
         self.integ = integ;
     }
 }

@@ -10,8 +10,8 @@ use crate::ipd::{IpdConfig, IpdDesign};
 use crate::num::{Pu, pu_from_f64};
 #[cfg_attr(feature = "select-estimators", allow(unused_imports))]
 use crate::observer::{
-    AnyEstimator, Ao, AoConfig, EstimatorKind, MrasCurrent, MrasCurrentConfig, MrasCurrentGains,
-    MrasEmf, MrasEmfConfig, Nlo, NloConfig, default_observer_gain,
+    AoConfig, EstimatorConfig, EstimatorKind, MrasCurrentConfig, MrasCurrentGains, MrasEmfConfig,
+    NloConfig, default_observer_gain,
 };
 use crate::params::{InverterParams, MotorParams, in_range, positive};
 use crate::svpwm::SvpwmConfig;
@@ -162,6 +162,30 @@ impl DriveDesign {
     }
 }
 
+/// The few choices a user makes about a drive; everything else is
+/// [`DriveDesign::default_for`]'s (for more, change a [`DriveDesign`] and use
+/// [`DriveConfig::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveOptions {
+    /// The estimator (default: the current-model MRAS, which starts from standstill).
+    pub estimator: EstimatorKind,
+    /// How the drive starts; `None`: the estimator's default (initial position detection
+    /// for the current-model MRAS, alignment for the back-EMF estimators).
+    pub startup: Option<StartupMode>,
+    /// Dead-time compensation; `None`: the default of [`DeadTimeDesign::default_for`].
+    pub deadtime: Option<DeadTimeMode>,
+}
+
+impl Default for DriveOptions {
+    fn default() -> Self {
+        Self {
+            estimator: EstimatorKind::MrasCurrent,
+            startup: None,
+            deadtime: None,
+        }
+    }
+}
+
 /// The fixed-point configuration of a drive.
 #[derive(Clone, Copy, Debug)]
 pub struct DriveConfig {
@@ -169,7 +193,8 @@ pub struct DriveConfig {
     pub base: PerUnit,
     /// The design it was computed from.
     pub design: DriveDesign,
-    pub(crate) estimator: AnyEstimator,
+    /// The estimator's coefficients ([`Drive::new`](super::Drive::new) builds its state).
+    pub estimator: EstimatorConfig,
     pub(crate) current: CurrentConfig,
     pub(crate) speed: SpeedConfig,
     /// Pole of the speed filter, `1 − exp(−ω_f T_s)`; `None`: no filter.
@@ -204,7 +229,27 @@ pub(crate) struct ProtectionConfig {
 }
 
 impl DriveConfig {
-    /// Computes and checks every coefficient for `motor` on `inverter` at `sample_hz`.
+    /// The drive for `motor` on `inverter` sampled at `sample_hz`, with every default of
+    /// [`DriveDesign::default_for`] but the choices of `options`.
+    pub fn from_params(
+        motor: &MotorParams,
+        inverter: &InverterParams,
+        sample_hz: f64,
+        options: DriveOptions,
+    ) -> Result<Self, ConfigError> {
+        let base = PerUnit::new(motor, inverter, sample_hz)?;
+        let mut design = DriveDesign::default_for(motor, inverter, &base, options.estimator);
+        if let Some(startup) = options.startup {
+            design.startup = startup;
+        }
+        if let Some(mode) = options.deadtime {
+            design.deadtime.mode = mode;
+        }
+        Self::new(motor, inverter, sample_hz, design)
+    }
+
+    /// Computes and checks every coefficient of `design` for `motor` on `inverter` at
+    /// `sample_hz`.
     pub fn new(
         motor: &MotorParams,
         inverter: &InverterParams,
@@ -216,17 +261,19 @@ impl DriveConfig {
         let g = design.observer_gain_rad_s;
         let estimator = match design.estimator {
             #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
-            EstimatorKind::Nlo => AnyEstimator::Nlo(Nlo::new(NloConfig::new(motor, &base, g)?)),
+            EstimatorKind::Nlo => EstimatorConfig::Nlo(NloConfig::new(motor, &base, g)?),
             #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
-            EstimatorKind::Ao => AnyEstimator::Ao(Ao::new(AoConfig::new(motor, &base, g)?)),
+            EstimatorKind::Ao => EstimatorConfig::Ao(AoConfig::new(motor, &base, g)?),
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             EstimatorKind::MrasEmf => {
-                AnyEstimator::MrasEmf(MrasEmf::new(MrasEmfConfig::paper(motor, &base, g)?))
+                EstimatorConfig::MrasEmf(MrasEmfConfig::paper(motor, &base, g)?)
             }
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
-            EstimatorKind::MrasCurrent => AnyEstimator::MrasCurrent(MrasCurrent::new(
-                MrasCurrentConfig::new(motor, &base, design.mras_current)?,
-            )),
+            EstimatorKind::MrasCurrent => EstimatorConfig::MrasCurrent(MrasCurrentConfig::new(
+                motor,
+                &base,
+                design.mras_current,
+            )?),
             #[allow(unreachable_patterns)] // every estimator is built without the feature
             _ => {
                 return Err(crate::params::ParamError {

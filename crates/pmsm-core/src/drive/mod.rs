@@ -22,7 +22,7 @@ mod config;
 mod monitor;
 mod startup;
 
-pub use config::{DriveConfig, DriveDesign, OpenLoopDesign, Protection, StartupMode};
+pub use config::{DriveConfig, DriveDesign, DriveOptions, OpenLoopDesign, Protection, StartupMode};
 
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
@@ -168,7 +168,7 @@ impl Drive {
     /// A drive in `Idle`.
     pub fn new(config: DriveConfig) -> Self {
         Self {
-            estimator: config.estimator,
+            estimator: AnyEstimator::new(&config.estimator),
             current: CurrentController::new(config.current),
             speed: SpeedController::new(config.speed),
             ipd: Ipd::new(config.ipd),
@@ -279,6 +279,10 @@ impl Drive {
     }
 
     /// One control sample. Integer arithmetic only; never panics, never allocates.
+    ///
+    /// The stages of the module's diagram in order: protection, Clarke, the estimator (and
+    /// the checks on its output), the state's setpoint (the speed loop in `Run`), then the
+    /// current loops, the dead-time compensation and the modulator (`Drive::control`).
     pub fn step(&mut self, input: &DriveInput) -> DriveOutput {
         if matches!(self.state, DriveState::Idle | DriveState::Fault(_)) {
             return OFF;
@@ -287,6 +291,27 @@ impl Drive {
             return self.trip(fault);
         }
         let i = clarke(input.i_abc);
+        let estimate = self.estimate(i);
+        let omega_ref = self.run_speed_ref();
+        if let Some(fault) = self.supervise(input, &estimate, omega_ref) {
+            return self.trip(fault);
+        }
+        let setpoint = match self.state {
+            DriveState::Ipd => return self.ipd_step(i, input.vdc),
+            DriveState::Align => self.align(),
+            DriveState::OpenLoop => match self.open_loop(&estimate) {
+                Ok(setpoint) => setpoint,
+                Err(fault) => return self.trip(fault),
+            },
+            DriveState::Run => self.speed_loop(omega_ref, &estimate),
+            DriveState::Idle | DriveState::Fault(_) => return OFF,
+        };
+        self.control(input, i, setpoint)
+    }
+
+    /// The estimator on the period that just ended, and the speed the speed loop sees.
+    #[inline(always)]
+    fn estimate(&mut self, i: AlphaBeta) -> Estimate {
         // The estimator always sees the period that just ended.
         let estimate = self.estimator.update(&ObserverInput { i, v: self.v_est });
         self.telemetry.estimate = estimate;
@@ -297,7 +322,17 @@ impl Drive {
             }
             None => estimate.omega,
         };
-        let omega_ref = self.run_speed_ref();
+        estimate
+    }
+
+    /// The checks on the sensors and the estimate of every sample ([`monitor`]).
+    #[inline(always)]
+    fn supervise(
+        &mut self,
+        input: &DriveInput,
+        estimate: &Estimate,
+        omega_ref: Pu,
+    ) -> Option<Fault> {
         let signals = monitor::Signals {
             i_abc: input.i_abc,
             omega: estimate.omega,
@@ -305,78 +340,86 @@ impl Drive {
             iq_ref: self.iq_ref,
             running: self.state == DriveState::Run,
         };
-        if let Some(fault) = self
-            .monitor
+        self.monitor
             .check(&self.config.monitor, &signals, &self.estimator)
-        {
-            return self.trip(fault);
+    }
+
+    /// One sample of the initial position detection, which drives the PWM itself; on success
+    /// the drive starts from the angle found.
+    #[inline(always)]
+    fn ipd_step(&mut self, i: AlphaBeta, vdc: Pu) -> DriveOutput {
+        let out = self.ipd.step(i, vdc);
+        self.v_est = out.v;
+        self.telemetry.v = out.v;
+        match out.done {
+            None => DriveOutput {
+                duties: out.duties,
+                pwm_on: out.pwm_on,
+            },
+            Some(Err(f)) => self.trip(Fault::InitialPosition(f)),
+            Some(Ok(r)) => {
+                self.ipd_result = Some(r);
+                self.state = self.rotor_found(r.theta);
+                self.v_est = AlphaBeta::default();
+                self.telemetry.estimate = self.estimator.estimate();
+                DriveOutput {
+                    duties: Duties::HALF,
+                    pwm_on: true,
+                }
+            }
         }
-        match self.state {
-            DriveState::Ipd => {
-                let out = self.ipd.step(i, input.vdc);
-                self.v_est = out.v;
-                self.telemetry.v = out.v;
-                match out.done {
-                    None => DriveOutput {
-                        duties: out.duties,
-                        pwm_on: out.pwm_on,
-                    },
-                    Some(Err(f)) => self.trip(Fault::InitialPosition(f)),
-                    Some(Ok(r)) => {
-                        self.ipd_result = Some(r);
-                        self.state = self.rotor_found(r.theta);
-                        self.v_est = AlphaBeta::default();
-                        self.telemetry.estimate = self.estimator.estimate();
-                        DriveOutput {
-                            duties: Duties::HALF,
-                            pwm_on: true,
-                        }
-                    }
-                }
-            }
-            DriveState::Align => {
-                let (theta, i_ref) = self.open_loop.align_frame(&self.config);
-                if self.open_loop.align_done(&self.config) {
-                    self.state = self.rotor_found(Angle::ZERO);
-                    self.telemetry.estimate = self.estimator.estimate();
-                }
-                self.control(i, input.i_abc, input.vdc, theta, Pu::ZERO, i_ref, None)
-            }
-            DriveState::OpenLoop => {
-                let (theta, omega, i_ref) = self.open_loop.advance(&self.config);
-                if self.open_loop.at_handover(&self.config) {
-                    match self.open_loop.handover(&estimate, &self.config) {
-                        Ok(iq) => {
-                            self.speed_filtered = estimate.omega;
-                            self.speed.reset(estimate.omega, iq);
-                            self.state = DriveState::Run;
-                        }
-                        Err(fault) => return self.trip(fault),
-                    }
-                }
-                self.control(i, input.i_abc, input.vdc, theta, omega, i_ref, None)
-            }
-            DriveState::Run => {
-                let speed = self.speed.step(omega_ref, self.speed_filtered);
-                self.iq_ref = speed.iq_ref;
-                let iq_ref = speed.iq_ref;
-                // The current-model MRAS already rotated this sample's current into the frame
-                // at θ̂ (same angle, same current, same bits): reuse its sin/cos and Park.
-                let frame = self.estimator.frame();
-                self.control(
-                    i,
-                    input.i_abc,
-                    input.vdc,
-                    estimate.theta,
-                    estimate.omega,
-                    Dq {
-                        d: Pu::ZERO,
-                        q: iq_ref,
-                    },
-                    frame,
-                )
-            }
-            DriveState::Idle | DriveState::Fault(_) => OFF,
+    }
+
+    /// Alignment: a d-axis current along α; at its end the rotor is at `θ = 0`.
+    #[inline(always)]
+    fn align(&mut self) -> Setpoint {
+        let (theta, i_ref) = self.open_loop.align_frame(&self.config);
+        if self.open_loop.align_done(&self.config) {
+            self.state = self.rotor_found(Angle::ZERO);
+            self.telemetry.estimate = self.estimator.estimate();
+        }
+        Setpoint {
+            theta,
+            omega: Pu::ZERO,
+            i_ref,
+            frame: None,
+        }
+    }
+
+    /// The open-loop start: an imposed frame accelerating to the handover speed, where the
+    /// estimator takes over (or the handover check trips).
+    #[inline(always)]
+    fn open_loop(&mut self, estimate: &Estimate) -> Result<Setpoint, Fault> {
+        let (theta, omega, i_ref) = self.open_loop.advance(&self.config);
+        if self.open_loop.at_handover(&self.config) {
+            let iq = self.open_loop.handover(estimate, &self.config)?;
+            self.speed_filtered = estimate.omega;
+            self.speed.reset(estimate.omega, iq);
+            self.state = DriveState::Run;
+        }
+        Ok(Setpoint {
+            theta,
+            omega,
+            i_ref,
+            frame: None,
+        })
+    }
+
+    /// The closed loop: the speed loop sets `i_q*` in the estimated frame.
+    #[inline(always)]
+    fn speed_loop(&mut self, omega_ref: Pu, estimate: &Estimate) -> Setpoint {
+        let speed = self.speed.step(omega_ref, self.speed_filtered);
+        self.iq_ref = speed.iq_ref;
+        Setpoint {
+            theta: estimate.theta,
+            omega: estimate.omega,
+            i_ref: Dq {
+                d: Pu::ZERO,
+                q: speed.iq_ref,
+            },
+            // The current-model MRAS already rotated this sample's current into the frame
+            // at θ̂ (same angle, same current, same bits): reuse its sin/cos and Park.
+            frame: self.estimator.frame(),
         }
     }
 
@@ -396,22 +439,17 @@ impl Drive {
         }
     }
 
-    /// Current loops in the frame at `theta` turning at `omega`, dead-time compensation and
-    /// modulation (seed 001 Fig. 1). `i_abc` is the measurement `i` came from. `frame`, when
-    /// given, is the estimator's: `theta.sin_cos()`, `park(i, ..)` and the next frame, already
-    /// computed.
-    #[allow(clippy::too_many_arguments)]
-    fn control(
-        &mut self,
-        i: AlphaBeta,
-        i_abc: Abc,
-        vdc: Pu,
-        theta: Angle,
-        omega: Pu,
-        i_ref: Dq,
-        frame: Option<Frame>,
-    ) -> DriveOutput {
-        let c = &self.config;
+    /// Current loops in the setpoint's frame, dead-time compensation and modulation
+    /// (Khlaief, Boussak, Gossa (2012), Fig. 1). `i` is the Clarke transform of `input.i_abc`.
+    fn control(&mut self, input: &DriveInput, i: AlphaBeta, setpoint: Setpoint) -> DriveOutput {
+        let Setpoint {
+            theta,
+            omega,
+            i_ref,
+            frame,
+        } = setpoint;
+        let vdc = input.vdc;
+        // Current loops, in the setpoint's frame.
         let i_dq = match frame {
             Some(f) => f.i_dq,
             None => park(i, theta.sin_cos()),
@@ -430,31 +468,15 @@ impl Drive {
         let sc_mid = match frame {
             Some(f) => midpoint(f.sc, f.sc_next),
             None => {
-                let half = Angle(c.open_loop.turn_per_speed.apply_bits(omega.to_bits()) / 2);
+                let turn = self.config.open_loop.turn_per_speed;
+                let half = Angle(turn.apply_bits(omega.to_bits()) / 2);
                 (theta + half).sin_cos()
             }
         };
         let v_ref = inverse_park(out.v, sc_mid);
-        // The measured phase currents go to the signs as sampled (no Clarke round trip).
-        let v_dt = match c.deadtime.design.source {
-            CurrentSource::Measured => {
-                c.deadtime
-                    .error_vector_abc_cached(i_abc, vdc, &mut self.deadtime_bus)
-            }
-            CurrentSource::Reference => {
-                // In Run the reference is on q alone: two products instead of four.
-                let i_ref_ab = if i_ref.d == Pu::ZERO {
-                    AlphaBeta {
-                        alpha: mul_unit(i_ref.q, sc_mid.sin.saturating_neg()),
-                        beta: mul_unit(i_ref.q, sc_mid.cos),
-                    }
-                } else {
-                    inverse_park(i_ref, sc_mid)
-                };
-                c.deadtime
-                    .error_vector_cached(i_ref_ab, vdc, &mut self.deadtime_bus)
-            }
-        };
+        // Dead-time compensation, then the modulator.
+        let v_dt = self.deadtime_vector(input, i_ref, sc_mid);
+        let c = &self.config;
         let m = c
             .svpwm
             .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
@@ -467,6 +489,32 @@ impl Drive {
         DriveOutput {
             duties: m.duties,
             pwm_on: true,
+        }
+    }
+
+    /// The dead-time voltage error vector over the coming period (Khlaief, Boussak, Gossa
+    /// (2012), eq. 6–9), from the measured phase currents or from the reference turned to the
+    /// mid-period angle `sc_mid`.
+    #[inline(always)]
+    fn deadtime_vector(&mut self, input: &DriveInput, i_ref: Dq, sc_mid: SinCos) -> AlphaBeta {
+        let deadtime = &self.config.deadtime;
+        match deadtime.design.source {
+            // The measured phase currents go to the signs as sampled (no Clarke round trip).
+            CurrentSource::Measured => {
+                deadtime.error_vector_abc_cached(input.i_abc, input.vdc, &mut self.deadtime_bus)
+            }
+            CurrentSource::Reference => {
+                // In Run the reference is on q alone: two products instead of four.
+                let i_ref_ab = if i_ref.d == Pu::ZERO {
+                    AlphaBeta {
+                        alpha: mul_unit(i_ref.q, sc_mid.sin.saturating_neg()),
+                        beta: mul_unit(i_ref.q, sc_mid.cos),
+                    }
+                } else {
+                    inverse_park(i_ref, sc_mid)
+                };
+                deadtime.error_vector_cached(i_ref_ab, input.vdc, &mut self.deadtime_bus)
+            }
         }
     }
 
@@ -503,7 +551,19 @@ impl Drive {
     }
 }
 
-/// Outputs off.
+/// What the current loops track at one sample: the frame they run in and the reference.
+#[derive(Clone, Copy, Debug)]
+struct Setpoint {
+    /// Angle of the frame (the estimate, or the imposed frame while starting).
+    theta: Angle,
+    /// Speed of the frame, per unit of `ω_b`.
+    omega: Pu,
+    /// Current reference in that frame.
+    i_ref: Dq,
+    /// The estimator's own frame at `theta`, when it computed one ([`Frame`]).
+    frame: Option<Frame>,
+}
+
 /// `(a + b)/2` componentwise, exact (floor), without overflow.
 #[inline(always)]
 fn midpoint(a: SinCos, b: SinCos) -> SinCos {
@@ -517,6 +577,7 @@ fn midpoint(a: SinCos, b: SinCos) -> SinCos {
     }
 }
 
+/// Outputs off.
 const OFF: DriveOutput = DriveOutput {
     duties: Duties::HALF,
     pwm_on: false,

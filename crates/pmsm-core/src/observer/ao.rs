@@ -15,29 +15,24 @@
 //!
 //! Signals: `ê` Q8.24 per unit of `V_b`; `κ` a [`Gain`].
 
+use super::emf::{EmfToRotor, approach};
 use super::{
-    Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, observer_pole,
-    rotor_angle_from_emf,
+    Direction, EmfMeter, EmfMeterConfig, Estimate, Estimator, ObserverInput, observer_pole,
 };
 use crate::angle::Angle;
 use crate::cordic::polar;
 use crate::error::ConfigError;
 use crate::frames::AlphaBeta;
-use crate::num::{Gain, Pu, mul_unit};
+use crate::num::{Gain, Pu};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
 /// Configuration of the [`Ao`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AoConfig {
-    meter: EmfMeter,
-    direction: Direction,
+    meter: EmfMeterConfig,
     kappa: Gain,
-    inv_psi: Gain,
-    psi_pu: Pu,
-    min_emf: Pu,
-    /// EMF below which the direction may flip (`FLIP_SPEED_PU` of the base speed).
-    flip_emf: Pu,
+    rotor: EmfToRotor,
     /// Observer gain `g`, rad/s.
     pub gain_rad_s: f64,
 }
@@ -49,17 +44,16 @@ impl AoConfig {
         motor.validate()?;
         let kappa = observer_pole(base, gain_rad_s)?;
         Ok(Self {
-            meter: EmfMeter::new(motor, base, motor.lq_h)?,
+            meter: EmfMeterConfig::new(motor, base, motor.lq_h)?,
             kappa,
-            inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
-            psi_pu: crate::num::pu_from_f64(motor.flux_wb / base.flux_wb),
-            min_emf: crate::num::pu_from_f64(super::nlo::MIN_EMF_PU),
-            flip_emf: crate::num::pu_from_f64(
-                super::direction::FLIP_SPEED_PU * motor.flux_wb / base.flux_wb,
-            ),
-            direction: Direction::new(base.sample_s, base.omega_e_rad_s),
+            rotor: EmfToRotor::new(motor, base)?,
             gain_rad_s,
         })
+    }
+
+    /// `ψ`, per unit of the flux base.
+    pub(crate) fn psi(&self) -> Pu {
+        self.rotor.psi()
     }
 }
 
@@ -75,19 +69,12 @@ pub struct Ao {
     innovation: Pu,
 }
 
-impl AoConfig {
-    /// `ψ`, per unit of the flux base.
-    pub(crate) fn psi(&self) -> Pu {
-        self.psi_pu
-    }
-}
-
 impl Ao {
     /// A new observer with zero EMF estimate.
     pub fn new(config: AoConfig) -> Self {
         Self {
-            meter: config.meter,
-            direction: config.direction,
+            meter: EmfMeter::default(),
+            direction: Direction::default(),
             config,
             emf: AlphaBeta::default(),
             last: Estimate::default(),
@@ -101,77 +88,14 @@ impl Ao {
     }
 }
 
-/// `x + κ (target − x)`, per component.
-pub(crate) fn approach(x: AlphaBeta, target: AlphaBeta, kappa: Gain) -> AlphaBeta {
-    approach_delta(x, target, x, kappa)
-}
-
-/// `x + κ (measured − predicted)`, per component: a correction by an innovation.
-/// `|m_α − p_α| + |m_β − p_β|`: the size of an EMF innovation, per unit of `V_b` (the L1
-/// norm: no product, between 1 and √2 times the Euclidean length).
-#[inline]
-pub(crate) fn innovation_l1(measured: AlphaBeta, predicted: AlphaBeta) -> Pu {
-    measured
-        .alpha
-        .saturating_sub(predicted.alpha)
-        .saturating_abs()
-        .saturating_add(
-            measured
-                .beta
-                .saturating_sub(predicted.beta)
-                .saturating_abs(),
-        )
-}
-
-pub(crate) fn approach_delta(
-    x: AlphaBeta,
-    measured: AlphaBeta,
-    predicted: AlphaBeta,
-    kappa: Gain,
-) -> AlphaBeta {
-    AlphaBeta {
-        alpha: x
-            .alpha
-            .saturating_add(kappa.apply(measured.alpha.saturating_sub(predicted.alpha))),
-        beta: x
-            .beta
-            .saturating_add(kappa.apply(measured.beta.saturating_sub(predicted.beta))),
-    }
-}
-
-/// The EMF vector `ψ ω (−sin θ, cos θ)` for a rotor at `theta` turning at `omega` (per unit,
-/// ψ in per unit of the base flux).
-pub(crate) fn emf_of(theta: Angle, omega: Pu, psi_pu: Pu) -> AlphaBeta {
-    let sc = theta.sin_cos();
-    let amplitude = crate::num::mul(omega, psi_pu);
-    AlphaBeta {
-        alpha: mul_unit(amplitude, sc.sin.saturating_neg()),
-        beta: mul_unit(amplitude, sc.cos),
-    }
-}
-
 impl Estimator for Ao {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
-        if let Some(measured) = self.meter.update(input.i, input.v) {
-            self.innovation = innovation_l1(measured, self.emf);
+        if let Some(measured) = self.meter.update(&self.config.meter, input.i, input.v) {
+            self.innovation = measured.saturating_sub(self.emf).l1_norm();
             self.emf = approach(self.emf, measured, self.config.kappa);
         }
         let p = polar(self.emf.alpha, self.emf.beta);
-        let forward = self.direction.update(
-            p.angle,
-            p.magnitude > self.config.min_emf,
-            p.magnitude < self.config.flip_emf,
-        );
-        let speed = self.config.inv_psi.apply(p.magnitude);
-        self.last = Estimate {
-            theta: rotor_angle_from_emf(p.angle, forward),
-            omega: if forward {
-                speed
-            } else {
-                speed.saturating_neg()
-            },
-            emf: self.emf,
-        };
+        self.last = self.config.rotor.estimate(self.emf, p, &mut self.direction);
         self.last
     }
 
@@ -184,7 +108,7 @@ impl Estimator for Ao {
     }
 
     fn reset(&mut self, theta: Angle, omega: Pu) {
-        self.emf = emf_of(theta, omega, self.config.psi_pu);
+        self.emf = self.config.rotor.emf_of(theta, omega);
         self.meter.restart();
         self.innovation = Pu::ZERO;
         self.direction.reset(omega >= Pu::ZERO);

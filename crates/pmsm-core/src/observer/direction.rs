@@ -12,7 +12,6 @@
 //! cannot turn the estimate half a turn.
 
 use crate::angle::Angle;
-use crate::num::sat_i32;
 
 /// Time constant of the mean angle step, s.
 pub const TIME_CONSTANT_S: f64 = 2e-3;
@@ -25,18 +24,14 @@ pub const FLIP_SPEED_PU: f64 = 0.02;
 /// Fractional bits of the filtered step (kept in `i64` to average sub-LSB steps).
 const FRAC: u32 = 16;
 
-/// Tracks the direction of rotation of an EMF vector.
-#[derive(Clone, Copy, Debug)]
-pub struct Direction {
+/// The coefficients of the direction tracker: the filter's shift and the flip threshold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct DirectionConfig {
     shift: u32,
     threshold: i64,
-    forward: bool,
-    previous: Option<Angle>,
-    /// Mean angle step per sample, in angle LSB · 2^FRAC.
-    mean_step: i64,
 }
 
-impl Direction {
+impl DirectionConfig {
     /// Tracker for sample period `sample_s` and base electrical speed `omega_b_rad_s`.
     pub fn new(sample_s: f64, omega_b_rad_s: f64) -> Self {
         let samples = TIME_CONSTANT_S / sample_s;
@@ -45,16 +40,35 @@ impl Direction {
         Self {
             shift,
             threshold: (step * (1u64 << FRAC) as f64) as i64,
+        }
+    }
+}
+
+/// Tracks the direction of rotation of an EMF vector (the state; see [`DirectionConfig`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Direction {
+    forward: bool,
+    previous: Option<Angle>,
+    /// Mean angle step per sample, in angle LSB · 2^FRAC.
+    mean_step: i64,
+}
+
+impl Default for Direction {
+    /// Forwards, no history.
+    fn default() -> Self {
+        Self {
             forward: true,
             previous: None,
             mean_step: 0,
         }
     }
+}
 
+impl Direction {
     /// Feeds the angle of the EMF vector at this sample, whether the vector is large enough
     /// for its angle to mean anything, and whether it is small enough for the rotor to be
     /// reversing ([`FLIP_SPEED_PU`]); returns `true` when turning forwards.
-    pub fn update(&mut self, phi: Angle, valid: bool, slow: bool) -> bool {
+    pub fn update(&mut self, c: &DirectionConfig, phi: Angle, valid: bool, slow: bool) -> bool {
         if !valid {
             self.previous = None;
             return self.forward;
@@ -63,25 +77,15 @@ impl Direction {
             let step = (phi - prev).0;
             if step.unsigned_abs() < 1 << 30 {
                 let target = (step as i64) << FRAC;
-                self.mean_step += (target - self.mean_step) >> self.shift;
+                self.mean_step += (target - self.mean_step) >> c.shift;
             }
         }
-        if slow && self.forward && self.mean_step < -self.threshold {
+        if slow && self.forward && self.mean_step < -c.threshold {
             self.forward = false;
-        } else if slow && !self.forward && self.mean_step > self.threshold {
+        } else if slow && !self.forward && self.mean_step > c.threshold {
             self.forward = true;
         }
         self.forward
-    }
-
-    /// True when turning forwards (θ increasing).
-    pub fn forward(&self) -> bool {
-        self.forward
-    }
-
-    /// The mean angle step per sample, angle LSB (saturated).
-    pub fn mean_step(&self) -> i32 {
-        sat_i32(self.mean_step >> FRAC)
     }
 
     /// Restarts with a known direction.

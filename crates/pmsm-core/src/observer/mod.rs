@@ -68,16 +68,16 @@ pub trait Estimator {
     fn reset(&mut self, theta: Angle, omega: Pu);
 }
 
-pub mod ao;
-pub mod direction;
-pub mod emf;
-pub mod mras_current;
-pub mod mras_emf;
-pub mod nlo;
+pub(crate) mod ao;
+pub(crate) mod direction;
+pub(crate) mod emf;
+pub(crate) mod mras_current;
+pub(crate) mod mras_emf;
+pub(crate) mod nlo;
 
 pub use ao::{Ao, AoConfig};
-pub use direction::Direction;
-pub use emf::EmfMeter;
+pub(crate) use direction::Direction;
+pub(crate) use emf::{EmfMeter, EmfMeterConfig};
 pub use mras_emf::{MrasEmf, MrasEmfConfig};
 pub use nlo::{Nlo, NloConfig};
 
@@ -85,7 +85,7 @@ use crate::error::ConfigError;
 use crate::num::Gain;
 
 /// Largest accepted `g T_s` of an observer gain: beyond it the observer keeps less than half a
-/// sample of memory and passes the measurement noise of [`EmfMeter`] almost unfiltered.
+/// sample of memory and passes the noise of the measured interval-mean EMF almost unfiltered.
 pub const MAX_GAIN_TS: f64 = 2.0;
 
 /// The matched pole `κ = 1 − exp(−g T_s)` of the observer gain `g` (key `gain`), which must lie
@@ -116,18 +116,6 @@ pub(crate) fn gain(key: &'static str, value: f64) -> Result<Gain, ConfigError> {
     })
 }
 
-/// The angle of the rotor d axis from the angle `phi` of a back-EMF vector: the EMF leads d by
-/// +90° when turning forwards (`ψ ω (−sin θ, cos θ)`) and lags it by 90° backwards
-/// (seed 000 eq. 11, 19: `θ̂ = atan2(−ê_α/s, ê_β/s)`).
-#[inline(always)]
-pub(crate) fn rotor_angle_from_emf(phi: Angle, forward: bool) -> Angle {
-    if forward {
-        phi - Angle::HALF_PI
-    } else {
-        phi + Angle::HALF_PI
-    }
-}
-
 pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
 
 /// Which estimator a drive runs.
@@ -148,6 +136,41 @@ impl EstimatorKind {
     /// Back-EMF estimators see nothing at standstill: they need an open-loop start.
     pub fn needs_open_loop_start(self) -> bool {
         !matches!(self, EstimatorKind::MrasCurrent)
+    }
+}
+
+/// The configuration of any estimator of the crate: coefficients only (the state is built
+/// from it by [`AnyEstimator::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)]
+pub enum EstimatorConfig {
+    /// See [`NloConfig`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
+    Nlo(NloConfig),
+    /// See [`AoConfig`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
+    Ao(AoConfig),
+    /// See [`MrasEmfConfig`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
+    MrasEmf(MrasEmfConfig),
+    /// See [`MrasCurrentConfig`].
+    #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+    MrasCurrent(MrasCurrentConfig),
+}
+
+impl EstimatorConfig {
+    /// Which estimator it configures.
+    pub fn kind(&self) -> EstimatorKind {
+        match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
+            EstimatorConfig::Nlo(_) => EstimatorKind::Nlo,
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
+            EstimatorConfig::Ao(_) => EstimatorKind::Ao,
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
+            EstimatorConfig::MrasEmf(_) => EstimatorKind::MrasEmf,
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+            EstimatorConfig::MrasCurrent(_) => EstimatorKind::MrasCurrent,
+        }
     }
 }
 
@@ -172,6 +195,20 @@ pub enum AnyEstimator {
 }
 
 impl AnyEstimator {
+    /// The estimator `config` describes, at rest.
+    pub fn new(config: &EstimatorConfig) -> Self {
+        match *config {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
+            EstimatorConfig::Nlo(c) => AnyEstimator::Nlo(Nlo::new(c)),
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
+            EstimatorConfig::Ao(c) => AnyEstimator::Ao(Ao::new(c)),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
+            EstimatorConfig::MrasEmf(c) => AnyEstimator::MrasEmf(MrasEmf::new(c)),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+            EstimatorConfig::MrasCurrent(c) => AnyEstimator::MrasCurrent(MrasCurrent::new(c)),
+        }
+    }
+
     /// Which one it is.
     pub fn kind(&self) -> EstimatorKind {
         match self {
@@ -189,8 +226,7 @@ impl AnyEstimator {
 
 /// The rotor frame an estimator already rotated the current into, for the drive to reuse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Frame {
+pub(crate) struct Frame {
     /// `sin_cos(θ̂)` of the last estimate, bit for bit.
     pub sc: crate::angle::SinCos,
     /// The measured current of the last update in that frame, bit for bit what `park` of the
@@ -203,7 +239,7 @@ pub struct Frame {
 impl AnyEstimator {
     /// For the estimators that rotate the measured current into their own estimated frame
     /// (the current-model MRAS): see [`Frame`]. `None` for the others.
-    pub fn frame(&self) -> Option<Frame> {
+    pub(crate) fn frame(&self) -> Option<Frame> {
         match self {
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(e) => {

@@ -19,8 +19,9 @@
 //! bounded. The division is the one `i64` division of the estimators (a library call on
 //! Cortex-M).
 
-use super::ao::{Ao, AoConfig, approach};
-use super::{Estimate, Estimator, ObserverInput, gain, rotor_angle_from_emf};
+use super::ao::{Ao, AoConfig};
+use super::emf::{approach, rotor_angle_from_emf};
+use super::{Estimate, Estimator, ObserverInput, gain};
 use crate::angle::Angle;
 use crate::cordic::polar;
 use crate::error::ConfigError;
@@ -35,7 +36,7 @@ pub const PAPER_CONSTANTS: [f64; 3] = [0.0347, 5208.0, 0.1];
 pub const MIN_SPEED_PU: f64 = 0.005;
 
 /// Configuration of the [`MrasEmf`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MrasEmfConfig {
     ao: AoConfig,
     /// `ω_b T_s / c3`: pull rate per unit of speed.
@@ -161,10 +162,7 @@ impl Estimator for MrasEmf {
         let pull = pull_fraction(c.pull.apply(speed_ao));
         self.model = approach(turned, reference, Gain::from_raw(pull.to_bits(), 24));
         // ε = ẽ × (ê_AO − ẽ) at the same instant (seed 000 eq. 28).
-        let d = AlphaBeta {
-            alpha: reference.alpha.saturating_sub(self.model.alpha),
-            beta: reference.beta.saturating_sub(self.model.beta),
-        };
+        let d = reference.saturating_sub(self.model);
         let eps = mul(d.beta, self.model.alpha).saturating_sub(mul(d.alpha, self.model.beta));
         self.integral = self.integral.saturating_add(c.k_int.apply(eps));
         // ω̂_Ad = (k1 ε + k2 ∫) / ω̂_AO (seed 000 eq. 29).

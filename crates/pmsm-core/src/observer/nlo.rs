@@ -23,45 +23,35 @@
 //!   leaves no error, whatever `g T_s`;
 //! - the slow mechanical terms use forward Euler.
 //!
-//! When `|ê|` is below [`MIN_EMF_PU`] the direction `û` of the previous estimate is kept
+//! When `|ê|` is below [`MIN_EMF_PU`](super::emf::MIN_EMF_PU) the direction `û` of the previous estimate is kept
 //! (equations.md §3.2). Speed and angle as the AO (eq. 19–20).
 //!
 //! Signals: `ê` Q8.24 per unit of `V_b`; `Δ` an [`Angle`]; `sinc` Q2.30; gains [`Gain`].
 
-use super::ao::{approach_delta, emf_of, innovation_l1};
+use super::emf::{EmfToRotor, correct};
 use super::{
-    Direction, EmfMeter, Estimate, Estimator, ObserverInput, gain, observer_pole,
-    rotor_angle_from_emf,
+    Direction, EmfMeter, EmfMeterConfig, Estimate, Estimator, ObserverInput, gain, observer_pole,
 };
 use crate::angle::{Angle, SinCos};
 use crate::cordic::polar;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, rotate};
-use crate::num::{Gain, Pu, Unit, dot_unit, mul_unit, pu_from_f64, round_shift_sat};
+use crate::num::{Gain, Pu, Unit, dot_unit, mul_unit, round_shift_sat};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
-/// Below this EMF magnitude (per unit) the direction `û` of the last estimate is used, and the
-/// angle of the estimate does not count as evidence of the direction of rotation.
-pub const MIN_EMF_PU: f64 = 1e-4;
-
 /// Configuration of the [`Nlo`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NloConfig {
-    meter: EmfMeter,
-    direction: Direction,
+    meter: EmfMeterConfig,
     kappa: Gain,
-    inv_psi: Gain,
-    psi_pu: Pu,
+    rotor: EmfToRotor,
     /// Half the rotation per sample, angle LSB per LSB of per-unit speed: `ω_b T_s / 2`.
     half_step: Gain,
     /// `T_s p K_T ψ I_b / (J V_b)`: EMF growth per sample per unit of current along û.
     accel: Gain,
     /// `T_s B / J`.
     friction: Gain,
-    min_emf: Pu,
-    /// EMF below which the direction may flip (`FLIP_SPEED_PU` of the base speed).
-    flip_emf: Pu,
     /// Observer gain `g`, rad/s.
     pub gain_rad_s: f64,
 }
@@ -77,18 +67,12 @@ impl NloConfig {
         let accel = ts * motor.p() * motor.kt_nm_per_a * motor.flux_wb * base.current_a
             / (motor.j_kg_m2 * base.voltage_v);
         Ok(Self {
-            meter: EmfMeter::new(motor, base, motor.lq_h)?,
-            direction: Direction::new(ts, base.omega_e_rad_s),
+            meter: EmfMeterConfig::new(motor, base, motor.lq_h)?,
             kappa,
-            inv_psi: gain("flux_wb", base.flux_wb / motor.flux_wb)?,
-            psi_pu: pu_from_f64(motor.flux_wb / base.flux_wb),
+            rotor: EmfToRotor::new(motor, base)?,
             half_step: gain("sample_hz", half_step)?,
             accel: gain("j_kg_m2", accel)?,
             friction: gain("b_nm_s", ts * motor.b_nm_s / motor.j_kg_m2)?,
-            min_emf: pu_from_f64(MIN_EMF_PU),
-            flip_emf: crate::num::pu_from_f64(
-                super::direction::FLIP_SPEED_PU * motor.flux_wb / base.flux_wb,
-            ),
             gain_rad_s,
         })
     }
@@ -112,8 +96,8 @@ impl Nlo {
     /// A new observer with zero EMF estimate.
     pub fn new(config: NloConfig) -> Self {
         Self {
-            meter: config.meter,
-            direction: config.direction,
+            meter: EmfMeter::default(),
+            direction: Direction::default(),
             config,
             emf: AlphaBeta::default(),
             emf_dir: Angle::ZERO.sin_cos(),
@@ -167,35 +151,21 @@ impl Estimator for Nlo {
             .saturating_add(mul_unit(growth, self.emf_dir.sin))
             .saturating_sub(c.friction.apply(previous.beta));
         // Correction by the innovation of the interval's mean EMF.
-        if let Some(measured) = self.meter.update(input.i, input.v) {
+        if let Some(measured) = self.meter.update(&self.config.meter, input.i, input.v) {
             let s = sinc(half.to_rad_unit());
             let predicted = AlphaBeta {
                 alpha: mul_unit(half_turned.alpha, s),
                 beta: mul_unit(half_turned.beta, s),
             };
-            self.innovation = innovation_l1(measured, predicted);
-            emf = approach_delta(emf, measured, predicted, c.kappa);
+            self.innovation = measured.saturating_sub(predicted).l1_norm();
+            emf = correct(emf, measured, predicted, c.kappa);
         }
         self.emf = emf;
         let p = polar(emf.alpha, emf.beta);
-        if p.magnitude > c.min_emf {
+        if c.rotor.has_angle(&p) {
             self.emf_dir = p.angle.sin_cos();
         }
-        let forward = self.direction.update(
-            p.angle,
-            p.magnitude > self.config.min_emf,
-            p.magnitude < self.config.flip_emf,
-        );
-        let speed = c.inv_psi.apply(p.magnitude);
-        self.last = Estimate {
-            theta: rotor_angle_from_emf(p.angle, forward),
-            omega: if forward {
-                speed
-            } else {
-                speed.saturating_neg()
-            },
-            emf,
-        };
+        self.last = c.rotor.estimate(emf, p, &mut self.direction);
         self.last
     }
 
@@ -208,7 +178,7 @@ impl Estimator for Nlo {
     }
 
     fn reset(&mut self, theta: Angle, omega: Pu) {
-        self.emf = emf_of(theta, omega, self.config.psi_pu);
+        self.emf = self.config.rotor.emf_of(theta, omega);
         let forward = omega >= Pu::ZERO;
         // ∠ê = θ + 90° forwards, θ − 90° backwards; rotor_angle_from_emf inverts that.
         self.emf_dir = (if forward {

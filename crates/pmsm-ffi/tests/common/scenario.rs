@@ -10,9 +10,9 @@
 //! `WORDS` words per step, in the order of [`Word`].
 #![allow(dead_code)]
 
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, DriveInput, StartupMode};
-use pmsm_core::observer::EstimatorKind;
-use pmsm_core::{Abc, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{
+    Abc, Drive, DriveConfig, DriveInput, DriveOptions, InverterParams, PerUnit, StartupMode,
+};
 use pmsm_ffi::{fault_code, pmsm_config_t, state_code};
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, MotorModel, Plant};
 use std::f64::consts::TAU;
@@ -77,13 +77,7 @@ pub enum Word {
 /// Words per step.
 pub const WORDS: usize = 17;
 
-/// Motor B.
-pub fn motor_b() -> MotorParams {
-    let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-    m.rated_current_a = Some(2.53);
-    m.rated_speed_rpm = Some(3000.0);
-    m
-}
+pub use pmsm_core::fixtures::motor_b;
 
 /// Its inverter (the current full scale is set from the base, as `pmsm simulate` does).
 pub fn inverter_b() -> InverterParams {
@@ -124,9 +118,11 @@ pub fn record() -> Vec<[i32; WORDS]> {
     let sample_hz = inv.pwm_hz;
     let base = PerUnit::new(&m, &inv, sample_hz).expect("base");
     inv.current_full_scale_a = 4.0 * base.current_a;
-    let mut design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
-    design.startup = StartupMode::Ipd;
-    let config = DriveConfig::new(&m, &inv, sample_hz, design).expect("config");
+    let options = DriveOptions {
+        startup: Some(StartupMode::Ipd),
+        ..DriveOptions::default()
+    };
+    let config = DriveConfig::from_params(&m, &inv, sample_hz, options).expect("config");
     let mut drive = Drive::new(config);
 
     let motor = Motor::new(MotorModel::new(m), 137f64.to_radians(), 0.0).expect("motor");

@@ -12,22 +12,22 @@
 
 use core::hint::black_box;
 
-use pmsm_core::control::{
-    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, SpeedConfig,
-    SpeedController, SpeedDesign, SpeedOutput,
-};
-use pmsm_core::cordic::{Polar, polar};
-use pmsm_core::deadtime::{DeadTimeConfig, DeadTimeDesign};
-use pmsm_core::drive::{DriveInput, DriveOutput};
-use pmsm_core::frames::{clarke, inverse_clarke, inverse_park, park};
-use pmsm_core::ipd::{Ipd, IpdConfig, IpdDesign, IpdOutput};
-use pmsm_core::num::{mul, mul_unit, pu_from_f64};
-use pmsm_core::observer::{
+use pmsm_core::{Abc, AlphaBeta, Angle, ConfigError, Dq, Pu, SinCos};
+use pmsm_core::{
     Ao, Estimate, Estimator, MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, Nlo,
     ObserverInput,
 };
-use pmsm_core::svpwm::{SvpwmConfig, SvpwmOutput};
-use pmsm_core::{Abc, AlphaBeta, Angle, ConfigError, Dq, Pu, SinCos};
+use pmsm_core::{
+    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, SpeedConfig,
+    SpeedController, SpeedDesign, SpeedOutput,
+};
+use pmsm_core::{DeadTimeConfig, DeadTimeDesign};
+use pmsm_core::{DriveInput, DriveOutput};
+use pmsm_core::{Ipd, IpdConfig, IpdDesign, IpdOutput};
+use pmsm_core::{Polar, polar};
+use pmsm_core::{SvpwmConfig, SvpwmOutput};
+use pmsm_core::{clarke, inverse_clarke, inverse_park, park};
+use pmsm_core::{mul, mul_unit, pu_from_f64};
 use pmsm_pil::cases::{self, Case, DRIVE_STATE_WORD, DriveCase, STATE_RUN};
 use pmsm_pil::format::{CaseData, Recording};
 use pmsm_pil::setup::Setup;

@@ -12,8 +12,8 @@ use std::f64::consts::PI;
 use std::path::Path;
 use std::process::ExitCode;
 
-use pmsm_core::drive::DriveInput;
-use pmsm_core::observer::ObserverInput;
+use pmsm_core::DriveInput;
+use pmsm_core::ObserverInput;
 use pmsm_core::{Abc, AlphaBeta, Angle, PerUnit, Pu};
 use pmsm_pil::cases::Case;
 use pmsm_pil::cases::{self, CASES, Io, Shape};

@@ -8,9 +8,9 @@
 //! host then records it on a scenario of its own (an open-loop trajectory, or the plant in a
 //! closed loop through [`Io::output`]).
 
-use pmsm_core::drive::{Drive, DriveInput, DriveState, StartupMode};
-use pmsm_core::observer::{Ao, Estimate, Estimator, EstimatorKind, Nlo, ObserverInput};
 use pmsm_core::{Abc, AlphaBeta, Angle, ConfigError, Pu};
+use pmsm_core::{Ao, Estimate, Estimator, EstimatorKind, Nlo, ObserverInput};
+use pmsm_core::{Drive, DriveInput, DriveState, StartupMode};
 
 use crate::setup::Setup;
 
@@ -288,7 +288,7 @@ impl Case for ClosedLoopCase {
         fn plant_error<E>(_: E) -> ConfigError {
             ConfigError::Param(pmsm_core::ParamError {
                 key: "plant",
-                reason: pmsm_core::params::ParamReason::Inconsistent("the plant rejected motor B"),
+                reason: pmsm_core::ParamReason::Inconsistent("the plant rejected motor B"),
             })
         }
         let motor = pmsm_plant::Motor::new(pmsm_plant::MotorModel::new(b.motor), theta0, 0.0)

@@ -1,8 +1,8 @@
 //! Motor A of `docs/scenarios.md` (seed 000) on a 300 V bus, sampled at 20 kHz.
 
-use pmsm_core::drive::{DriveConfig, DriveDesign, StartupMode};
-use pmsm_core::observer::{AoConfig, EstimatorKind, MrasEmfConfig, NloConfig};
+use pmsm_core::{AoConfig, EstimatorKind, MrasEmfConfig, NloConfig};
 use pmsm_core::{ConfigError, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{DriveConfig, DriveOptions, StartupMode};
 
 /// Control sample rate, Hz.
 pub const SAMPLE_HZ: f64 = 20e3;
@@ -111,15 +111,18 @@ impl Setup {
     }
 
     /// The seed-001 drive of `pmsm simulate` (every default of
-    /// [`DriveDesign::default_for`]) with `estimator` and `startup`.
+    /// [`DriveDesign::default_for`](pmsm_core::DriveDesign::default_for)) with `estimator`
+    /// and `startup`.
     pub fn drive(
         &self,
         estimator: EstimatorKind,
         startup: StartupMode,
     ) -> Result<DriveConfig, ConfigError> {
-        let mut design =
-            DriveDesign::default_for(&self.motor, &self.inverter, &self.base, estimator);
-        design.startup = startup;
-        DriveConfig::new(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ, design)
+        let options = DriveOptions {
+            estimator,
+            startup: Some(startup),
+            ..DriveOptions::default()
+        };
+        DriveConfig::from_params(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ, options)
     }
 }

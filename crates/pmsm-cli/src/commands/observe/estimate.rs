@@ -4,10 +4,8 @@ use super::input::Samples;
 use super::{Args, OUTPUT_COLUMNS, Observer};
 use crate::csv_io;
 use anyhow::{Result, anyhow};
-use pmsm_core::observer::{
-    Ao, AoConfig, Estimator, MrasEmf, MrasEmfConfig, Nlo, NloConfig, ObserverInput,
-};
 use pmsm_core::{AlphaBeta, MotorParams, PerUnit};
+use pmsm_core::{Ao, AoConfig, Estimator, MrasEmf, MrasEmfConfig, Nlo, NloConfig, ObserverInput};
 use std::f64::consts::TAU;
 
 /// `--gain`, or 3 × the rated electrical speed within [100, 0.25/T_s], rad/s.

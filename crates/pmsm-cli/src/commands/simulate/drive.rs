@@ -3,10 +3,10 @@
 
 use crate::scenario_file::{CompensationMode, ObserverKind, Scenario, Startup};
 use anyhow::{Result, anyhow, bail};
-use pmsm_core::deadtime::DeadTimeMode;
-use pmsm_core::drive::{Drive, DriveConfig, DriveDesign, StartupMode};
-use pmsm_core::observer::{EstimatorKind, MrasCurrentGains};
+use pmsm_core::DeadTimeMode;
 use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode};
+use pmsm_core::{EstimatorKind, MrasCurrentGains};
 use std::f64::consts::TAU;
 
 /// The drive of a scenario and what the loop needs to talk to it in SI units.

@@ -3,7 +3,7 @@
 
 use super::{Row, Run, wrap};
 use crate::scenario_file::Scenario;
-use pmsm_core::drive::DriveState;
+use pmsm_core::DriveState;
 
 /// Statistics of one phase of a run (between two breakpoints of the references).
 #[derive(Clone, Debug)]

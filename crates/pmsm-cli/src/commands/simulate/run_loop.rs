@@ -6,7 +6,7 @@ use super::plant::{Injector, build_plant};
 use crate::scenario_file::Scenario;
 use anyhow::{Result, anyhow};
 use pmsm_core::Abc;
-use pmsm_core::drive::{Drive, DriveInput, DriveOutput, DriveState};
+use pmsm_core::{Drive, DriveInput, DriveOutput, DriveState};
 use pmsm_plant::{Plant, PlantError};
 use std::f64::consts::{PI, TAU};
 
@@ -190,7 +190,7 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
         pwm_on: out.pwm_on,
         state: drive.state(),
         i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
-        health: pmsm_core::units::to_f64(drive.health()),
+        health: pmsm_core::to_f64(drive.health()),
     }
 }
 

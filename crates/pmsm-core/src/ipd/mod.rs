@@ -177,7 +177,7 @@ impl IpdConfig {
     ///
     /// Errors: [`ConfigError::Param`] naming `ipd.*` for a design value out of range or a
     /// peak the pulse voltage cannot reach; [`ConfigError::OutOfEnvelope`] for a pulse longer
-    /// than [`MAX_SAMPLES`].
+    /// than 2²⁰ samples.
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,
@@ -408,49 +408,64 @@ impl Ipd {
         if self.done.is_some() {
             return Self::idle(self.done);
         }
+        let sign = match self.measure(i) {
+            Ok(sign) => sign,
+            Err(f) => return self.stop(Err(f)),
+        };
+        if let Some(done) = self.advance() {
+            return self.stop(done);
+        }
+        self.output(sign, vdc)
+    }
+
+    /// What this sample measures: the overcurrent check, then the current along the pulse's
+    /// direction at the start of a pulse (baseline) and at the end of its first stage (peak).
+    /// Returns the sign of this sample's voltage (`None`: zero vector).
+    #[inline(always)]
+    fn measure(&mut self, i: AlphaBeta) -> Result<Option<bool>, IpdFault> {
         let ph = inverse_clarke(i);
         let worst =
             ph.a.saturating_abs()
                 .max(ph.b.saturating_abs())
                 .max(ph.c.saturating_abs());
         if worst > self.config.i_limit {
-            return self.stop(Err(IpdFault::OverCurrent(worst)));
+            return Err(IpdFault::OverCurrent(worst));
         }
-        let along = mul_unit(i.alpha, self.dir.cos).saturating_add(mul_unit(i.beta, self.dir.sin));
-        let n_pulse = if self.pulse < 3 {
-            self.config.n_short
-        } else {
-            self.config.n_long
-        };
-        // This sample's output, and what it measures: the current at the start of a pulse
-        // (baseline) and at the end of its first stage (peak).
-        let sign = match self.stage {
+        match self.stage {
             Stage::On => {
                 if self.count == 0 {
                     self.dir = self.direction(self.pulse).sin_cos();
                     self.baseline = mul_unit(i.alpha, self.dir.cos)
                         .saturating_add(mul_unit(i.beta, self.dir.sin));
                 }
-                Some(true)
+                Ok(Some(true))
             }
             Stage::Return => {
                 if self.count == 0 {
+                    let along = mul_unit(i.alpha, self.dir.cos)
+                        .saturating_add(mul_unit(i.beta, self.dir.sin));
                     let peak = along.saturating_sub(self.baseline);
                     if let Some(p) = self.peaks.get_mut(self.pulse as usize) {
                         *p = peak;
                     }
                     if self.pulse < 3 && peak < self.config.i_short_min {
-                        return self.stop(Err(IpdFault::NoCurrent(peak)));
+                        return Err(IpdFault::NoCurrent(peak));
                     }
                 }
-                Some(false)
+                Ok(Some(false))
             }
-            Stage::Off => None,
-        };
-        // Advance.
+            Stage::Off => Ok(None),
+        }
+    }
+
+    /// Counts the sample and moves to the next stage or pulse; after the third pulse the
+    /// angle mod π, after the fifth the result (`Some`: the detection is over).
+    #[inline(always)]
+    fn advance(&mut self) -> Option<Result<IpdResult, IpdFault>> {
         self.count += 1;
         let limit = match self.stage {
-            Stage::On | Stage::Return => n_pulse,
+            Stage::On | Stage::Return if self.pulse < 3 => self.config.n_short,
+            Stage::On | Stage::Return => self.config.n_long,
             Stage::Off => self.config.n_off,
         };
         if self.count >= limit {
@@ -459,41 +474,42 @@ impl Ipd {
                 Stage::On => self.stage = Stage::Return,
                 Stage::Return => self.stage = Stage::Off,
                 Stage::Off => {
-                    // A pulse has ended: the angle after the third, the result after the fifth.
                     if self.pulse == 2
                         && let Err(f) = self.saliency()
                     {
-                        return self.stop(Err(f));
+                        return Some(Err(f));
                     }
                     if self.pulse >= 4 {
-                        let r = self.polarity();
-                        return self.stop(r);
+                        return Some(self.polarity());
                     }
                     self.pulse += 1;
                     self.stage = Stage::On;
                 }
             }
         }
-        let v = match sign {
-            Some(pos) => {
-                let m = if pos {
-                    self.config.v_p
-                } else {
-                    -self.config.v_p
-                };
-                AlphaBeta {
-                    alpha: mul_unit(m, self.dir.cos),
-                    beta: mul_unit(m, self.dir.sin),
-                }
-            }
-            None => {
-                return IpdOutput {
-                    duties: Duties::LOW,
-                    v: AlphaBeta::default(),
-                    pwm_on: true,
-                    done: None,
-                };
-            }
+        None
+    }
+
+    /// The duties of the next period: the pulse's voltage of sign `sign` along its direction,
+    /// or the zero vector (all legs low) between pulses.
+    #[inline(always)]
+    fn output(&mut self, sign: Option<bool>, vdc: Pu) -> IpdOutput {
+        let Some(positive) = sign else {
+            return IpdOutput {
+                duties: Duties::LOW,
+                v: AlphaBeta::default(),
+                pwm_on: true,
+                done: None,
+            };
+        };
+        let m = if positive {
+            self.config.v_p
+        } else {
+            -self.config.v_p
+        };
+        let v = AlphaBeta {
+            alpha: mul_unit(m, self.dir.cos),
+            beta: mul_unit(m, self.dir.sin),
         };
         let out = self.config.svpwm.modulate(v, vdc);
         if out.bus_low {
@@ -563,73 +579,4 @@ const SQRT3_2: crate::num::Unit = crate::num::Unit::from_bits(929_887_697);
 const THIRD_TURN: Angle = Angle(1_431_655_765);
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::params::InverterParams;
-
-    fn motor_b() -> (MotorParams, PerUnit) {
-        let mut m = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011);
-        m.rated_current_a = Some(2.53);
-        let inv = InverterParams {
-            vdc_v: 540.0,
-            pwm_hz: 14e3,
-            dead_time_s: 2e-6,
-            current_full_scale_a: 10.0,
-        };
-        (m, PerUnit::new(&m, &inv, 14e3).unwrap())
-    }
-
-    #[test]
-    fn motor_b_pulses_match_the_seed() {
-        let (m, b) = motor_b();
-        let c = IpdConfig::new(&m, &b, IpdDesign::default()).unwrap();
-        // Seed 001: 200 µs and 700 µs.
-        assert_eq!(c.n_short, 3);
-        assert_eq!(c.n_long, 10);
-        assert!(c.total_samples() < 14_000 / 2);
-    }
-
-    #[test]
-    fn sectors_follow_table_2() {
-        for (deg, s) in [
-            (0.0, 1),
-            (59.9, 1),
-            (60.1, 2),
-            (179.0, 3),
-            (181.0, 4),
-            (299.0, 5),
-            (359.9, 6),
-        ] {
-            assert_eq!(sector(Angle::from_deg(deg)), s, "{deg}");
-        }
-        assert!((THIRD_TURN.to_deg() - 120.0).abs() < 1e-6);
-        assert!(((-THIRD_TURN).to_deg() + 120.0).abs() < 1e-6);
-    }
-
-    #[test]
-    fn overcurrent_and_unreachable_peaks() {
-        let (m, b) = motor_b();
-        let d = IpdDesign {
-            long_current_pu: 15.0,
-            current_limit_pu: 20.0,
-            ..Default::default()
-        };
-        assert!(matches!(
-            IpdConfig::new(&m, &b, d),
-            Err(ConfigError::Param(ParamError {
-                key: "ipd.long_current_pu",
-                ..
-            }))
-        ));
-        let mut ipd = Ipd::new(IpdConfig::new(&m, &b, IpdDesign::default()).unwrap());
-        let big = AlphaBeta {
-            alpha: Pu::from_num(4),
-            beta: Pu::ZERO,
-        };
-        let out = ipd.step(big, Pu::from_num(1.732));
-        assert!(!out.pwm_on);
-        assert!(matches!(out.done, Some(Err(IpdFault::OverCurrent(_)))));
-        // Stays stopped.
-        assert!(!ipd.step(AlphaBeta::default(), Pu::from_num(1.732)).pwm_on);
-    }
-}
+mod tests;

@@ -27,6 +27,10 @@ pub const PU_FRAC: u32 = 24;
 /// Fractional bits of [`Unit`].
 pub const UNIT_FRAC: u32 = 30;
 
+/// `1/√3` in Q1.31 (rounded), the scale of Clarke's β, of the modulator's circle and of the
+/// dead-time vector.
+pub(crate) const INV_SQRT3_Q31: i32 = 1_239_850_262;
+
 /// Rounds `x / 2^shift` to nearest (ties toward +∞) and saturates to `i32`.
 ///
 /// `shift` must be in 1..=62 and `|x| ≤ 2⁶³ − 2³²` (any product of two `i32`, or a sum of
@@ -34,7 +38,7 @@ pub const UNIT_FRAC: u32 = 30;
 /// `shift` ≤ 32 (every per-sample product) this is about ten instructions on a Cortex-M4:
 /// the rounding half is added before the shift, and the fit test looks at the high word only.
 #[inline(always)]
-pub const fn round_shift_sat(x: i64, shift: u32) -> i32 {
+pub(crate) const fn round_shift_sat(x: i64, shift: u32) -> i32 {
     if shift <= 32 {
         shr_sat_small(x, shift)
     } else {
@@ -60,7 +64,7 @@ const fn shr_sat_small(x: i64, shift: u32) -> i32 {
 
 /// Saturates an `i64` to the `i32` range.
 #[inline(always)]
-pub const fn sat_i32(x: i64) -> i32 {
+pub(crate) const fn sat_i32(x: i64) -> i32 {
     if x > i32::MAX as i64 {
         i32::MAX
     } else if x < i32::MIN as i64 {
@@ -80,7 +84,7 @@ pub const fn sat_i32(x: i64) -> i32 {
 /// is recognised as the ARM architecture without 32-bit compare-and-swap atomics (Rust sets
 /// no `target_feature` that tells the Thumb-1-only cores apart).
 #[inline(always)]
-pub fn wmul(a: i32, b: i32) -> i64 {
+pub(crate) fn wmul(a: i32, b: i32) -> i64 {
     #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
     {
         wmul_v6m(a, b)
@@ -117,7 +121,7 @@ const fn wmul_halves(a: i32, b: i32) -> i64 {
 /// often per sample (sin/cos, Park), where the call is worth saving; elsewhere [`wmul`] keeps
 /// the micro:bit's nearly full flash in budget.
 #[inline(always)]
-pub fn wmul_inline(a: i32, b: i32) -> i64 {
+pub(crate) fn wmul_inline(a: i32, b: i32) -> i64 {
     #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
     {
         wmul_halves(a, b)
@@ -131,7 +135,7 @@ pub fn wmul_inline(a: i32, b: i32) -> i64 {
 /// `a · b` as the exact 64-bit product of two `u32` (`UMULL` on Cortex-M3/M4; four 16×16
 /// partial products on ARMv6-M instead of the general `__aeabi_lmul`).
 #[inline(always)]
-pub fn umul(a: u32, b: u32) -> u64 {
+pub(crate) fn umul(a: u32, b: u32) -> u64 {
     #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
     {
         umul_v6m(a, b)
@@ -165,7 +169,7 @@ const fn umul_halves(a: u32, b: u32) -> u64 {
 /// control path. Valid for `|x| ≤ d` (a fraction within ±1); beyond, `x << pre` saturates and
 /// so does the result.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Reciprocal {
+pub(crate) struct Reciprocal {
     r: i32,
     pre: u32,
 }
@@ -259,7 +263,7 @@ pub fn mul_unit(a: Pu, u: Unit) -> Pu {
 
 /// `a · u + b · v` with a single rounding, saturated (the kernel of Park's rotation).
 #[inline(always)]
-pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
+pub(crate) fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
     let acc = wmul_inline(a.to_bits(), u.to_bits()) + wmul_inline(b.to_bits(), v.to_bits());
     Pu::from_bits(round_shift_sat(acc, UNIT_FRAC))
 }
@@ -271,7 +275,7 @@ pub fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
 /// significant bits whatever the magnitude: [`Gain::new`] picks the shift once in the
 /// configuration, and [`Gain::apply`] is one 32×32→64 multiply and a rounding shift.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Gain {
+pub(crate) struct Gain {
     mantissa: i32,
     shift: u32,
 }
@@ -353,7 +357,7 @@ impl Gain {
 /// reject values outside the range. `Coef<30>` holds gains below 2 in magnitude to 9.3e−10,
 /// `Coef<24>` below 128 to 6e−8.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Coef<const F: u32>(i32);
+pub(crate) struct Coef<const F: u32>(i32);
 
 impl<const F: u32> Coef<F> {
     /// Zero.
@@ -406,15 +410,6 @@ impl<const F: u32> Coef<F> {
     }
 }
 
-/// `a · x + b · y` with one rounding, saturated: two products for the price of one fit test.
-#[inline(always)]
-pub fn mac2<const F: u32>(a: Coef<F>, x: Pu, b: Coef<F>, y: Pu) -> Pu {
-    Pu::from_bits(round_shift_sat(
-        a.wide(x.to_bits()) + b.wide(y.to_bits()),
-        F,
-    ))
-}
-
 /// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).
 ///
 /// For configuration and host code; the control path never touches floats.
@@ -422,13 +417,8 @@ pub fn pu_from_f64(x: f64) -> Pu {
     Pu::from_bits(f64_to_bits_sat(x, PU_FRAC))
 }
 
-/// Converts a float to [`Unit`], rounding to nearest and saturating (NaN gives 0).
-pub fn unit_from_f64(x: f64) -> Unit {
-    Unit::from_bits(f64_to_bits_sat(x, UNIT_FRAC))
-}
-
 /// `round(x · 2^frac)` saturated to `i32`; NaN maps to 0.
-pub fn f64_to_bits_sat(x: f64, frac: u32) -> i32 {
+pub(crate) fn f64_to_bits_sat(x: f64, frac: u32) -> i32 {
     let scaled = libm::round(x * (1u64 << frac) as f64);
     if scaled.is_nan() {
         0
@@ -442,184 +432,4 @@ pub fn f64_to_bits_sat(x: f64, frac: u32) -> i32 {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use proptest::prelude::*;
-
-    fn to_f64(x: Pu) -> f64 {
-        x.to_bits() as f64 / (1u64 << PU_FRAC) as f64
-    }
-
-    #[test]
-    fn rounding_is_to_nearest() {
-        // 1.5 LSB rounds up to 2, -1.5 LSB to -1 (ties toward +inf), 1.49 down.
-        assert_eq!(round_shift_sat(3, 1), 2);
-        assert_eq!(round_shift_sat(-3, 1), -1);
-        assert_eq!(round_shift_sat(0b1011, 2), 3);
-        assert_eq!(round_shift_sat(0b1001, 2), 2);
-    }
-
-    #[test]
-    fn products_saturate_instead_of_wrapping() {
-        let big = Pu::from_num(100);
-        assert_eq!(mul(big, big), Pu::MAX);
-        assert_eq!(mul(big, -big), Pu::MIN);
-        assert_eq!(mul_unit(Pu::MIN, Unit::from_bits(i32::MIN)), Pu::MAX);
-        assert_eq!(pu_from_f64(1e9), Pu::MAX);
-        assert_eq!(pu_from_f64(-1e9), Pu::MIN);
-        assert_eq!(pu_from_f64(f64::NAN), Pu::ZERO);
-    }
-
-    #[test]
-    fn gains_keep_thirty_bits_across_decades() {
-        for v in [
-            1e-9, -3.7e-6, 0.001234, 0.5, -1.0, 3.0, 268.4, 16384.0, -1e9,
-        ] {
-            let g = Gain::new(v).unwrap();
-            assert!(((g.to_f64() - v) / v).abs() < 1e-9, "{v}");
-        }
-        assert_eq!(Gain::new(0.0), Some(Gain::ZERO));
-        assert_eq!(Gain::new(f64::NAN), None);
-        assert_eq!(Gain::new(1e10), None);
-        assert_eq!(Gain::new(1e-10), None);
-        assert_eq!(Gain::new(1e6).unwrap().apply(Pu::from_num(1)), Pu::MAX);
-    }
-
-    fn round_shift_reference(x: i64, shift: u32) -> i32 {
-        let r = (x as i128 + (1i128 << (shift - 1))) >> shift;
-        r.clamp(i32::MIN as i128, i32::MAX as i128) as i32
-    }
-
-    #[test]
-    fn round_shift_at_the_corners() {
-        let lim = i64::MAX - (1i64 << 32) + 1;
-        for shift in [1, 2, 23, 24, 30, 31, 32, 33, 48, 62] {
-            for x in [
-                0,
-                1,
-                -1,
-                lim,
-                -lim,
-                1 << 62,
-                -(1 << 62),
-                i32::MAX as i64,
-                i32::MIN as i64,
-            ] {
-                assert_eq!(
-                    round_shift_sat(x, shift),
-                    round_shift_reference(x, shift),
-                    "{x} {shift}"
-                );
-            }
-            let edge = (i32::MAX as i64) << shift;
-            for x in [edge - 1, edge, edge + 1, -edge - 1, -edge, -edge + 1] {
-                assert_eq!(
-                    round_shift_sat(x, shift),
-                    round_shift_reference(x, shift),
-                    "{x} {shift}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn coefs_reject_what_they_cannot_hold() {
-        assert_eq!(
-            Coef::<30>::new(1.999_999_999).map(|c| c.bits()),
-            Some(i32::MAX)
-        );
-        assert_eq!(Coef::<30>::new(2.0), None);
-        assert_eq!(Coef::<30>::new(-2.0).map(|c| c.bits()), Some(i32::MIN));
-        assert_eq!(Coef::<24>::new(f64::NAN), None);
-        assert_eq!(
-            Coef::<24>::new(100.0).unwrap().apply(Pu::from_num(2)),
-            Pu::MAX
-        );
-        assert!((Coef::<30>::limit() - 2.0).abs() < 1e-12);
-    }
-
-    proptest! {
-        #[test]
-        fn reciprocal_within_half_lsb_and_two_ulp(d in 1i32..=i32::MAX, x in any::<i32>()) {
-            // The contract: |x| ≤ d.
-            let x = (x as i64 % (d as i64 + 1)) as i32;
-            let exact = x as f64 * (1u64 << 30) as f64 / d as f64;
-            for r in [Reciprocal::of(d), Reciprocal::from_f64(d as f64).unwrap()] {
-                let got = r.fraction(x) as f64;
-                // 2⁻³⁰ relative from the mantissa, half an LSB from the rounding.
-                prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
-            }
-        }
-
-        #[test]
-        fn reciprocal_of_fractional_divisors(d in 1.0f64..1e9, x in -1.0f64..1.0) {
-            let r = Reciprocal::from_f64(d).unwrap();
-            let xi = libm::round(x * d) as i32;
-            let exact = xi as f64 * (1u64 << 30) as f64 / d;
-            let got = r.fraction(xi) as f64;
-            prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
-            // Q4.28: within one LSB.
-            let got = r.fraction_q28(xi) as f64;
-            prop_assert!((got - exact / 4.0).abs() <= 1.0, "{} {}", got, exact / 4.0);
-        }
-
-        #[test]
-        fn round_shift_matches_exact_rounding(
-            x in -(i64::MAX - (1i64 << 32) + 1)..=(i64::MAX - (1i64 << 32) + 1),
-            shift in 1u32..=62,
-        ) {
-            prop_assert_eq!(round_shift_sat(x, shift), round_shift_reference(x, shift));
-        }
-
-        #[test]
-        fn coef_within_half_lsb(v in -100.0f64..100.0, x in any::<i32>(), y in any::<i32>()) {
-            let c = Coef::<24>::new(v).unwrap();
-            prop_assert!((c.to_f64() - v).abs() <= 0.5 / (1u64 << 24) as f64);
-            let exact = x as f64 * c.to_f64();
-            let got = c.apply_bits(x) as f64;
-            if exact.abs() < 2.147e9 {
-                prop_assert!((got - exact).abs() <= 0.5);
-            } else if exact.abs() > 2.1475e9 {
-                prop_assert_eq!(c.apply_bits(x), if exact > 0.0 { i32::MAX } else { i32::MIN });
-            }
-            let d = Coef::<24>::new(-v / 3.0).unwrap();
-            let exact2 = exact + y as f64 * d.to_f64();
-            let got2 = mac2(c, Pu::from_bits(x), d, Pu::from_bits(y)).to_bits() as f64;
-            if exact2.abs() < 2.1e9 {
-                prop_assert!((got2 - exact2).abs() <= 0.5);
-            }
-        }
-
-        #[test]
-        fn wide_multiply_from_halves_is_exact(a in any::<i32>(), b in any::<i32>()) {
-            prop_assert_eq!(wmul_halves(a, b), a as i64 * b as i64);
-            prop_assert_eq!(wmul(a, b), a as i64 * b as i64);
-            prop_assert_eq!(wmul_inline(a, b), a as i64 * b as i64);
-            let (ua, ub) = (a as u32, b as u32);
-            prop_assert_eq!(umul_halves(ua, ub), ua as u64 * ub as u64);
-            prop_assert_eq!(umul(ua, ub), ua as u64 * ub as u64);
-        }
-
-        #[test]
-        fn gain_within_half_lsb_plus_relative(v in -1e4f64..1e4, x in any::<i32>()) {
-            let g = Gain::new(v).unwrap();
-            let exact = x as f64 * g.to_f64();
-            let got = g.apply_bits(x) as f64;
-            if exact.abs() < 2.1e9 {
-                prop_assert!((got - exact).abs() <= 0.5 + 1e-9);
-            }
-        }
-
-        #[test]
-        fn mul_within_half_lsb_of_exact(a in any::<i32>(), b in any::<i32>()) {
-            let (a, b) = (Pu::from_bits(a), Pu::from_bits(b));
-            let exact = to_f64(a) * to_f64(b);
-            let got = mul(a, b);
-            if exact.abs() < 127.9 {
-                prop_assert!((to_f64(got) - exact).abs() <= 0.5 / (1u64 << PU_FRAC) as f64);
-            } else {
-                prop_assert_eq!(got, if exact > 0.0 { Pu::MAX } else { Pu::MIN });
-            }
-        }
-    }
-}
+mod tests;

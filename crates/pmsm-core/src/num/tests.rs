@@ -1,0 +1,175 @@
+//! Unit tests of `num`.
+
+use super::*;
+use proptest::prelude::*;
+
+fn to_f64(x: Pu) -> f64 {
+    x.to_bits() as f64 / (1u64 << PU_FRAC) as f64
+}
+
+#[test]
+fn rounding_is_to_nearest() {
+    // 1.5 LSB rounds up to 2, -1.5 LSB to -1 (ties toward +inf), 1.49 down.
+    assert_eq!(round_shift_sat(3, 1), 2);
+    assert_eq!(round_shift_sat(-3, 1), -1);
+    assert_eq!(round_shift_sat(0b1011, 2), 3);
+    assert_eq!(round_shift_sat(0b1001, 2), 2);
+}
+
+#[test]
+fn products_saturate_instead_of_wrapping() {
+    let big = Pu::from_num(100);
+    assert_eq!(mul(big, big), Pu::MAX);
+    assert_eq!(mul(big, -big), Pu::MIN);
+    assert_eq!(mul_unit(Pu::MIN, Unit::from_bits(i32::MIN)), Pu::MAX);
+    assert_eq!(pu_from_f64(1e9), Pu::MAX);
+    assert_eq!(pu_from_f64(-1e9), Pu::MIN);
+    assert_eq!(pu_from_f64(f64::NAN), Pu::ZERO);
+}
+
+#[test]
+fn gains_keep_thirty_bits_across_decades() {
+    for v in [
+        1e-9, -3.7e-6, 0.001234, 0.5, -1.0, 3.0, 268.4, 16384.0, -1e9,
+    ] {
+        let g = Gain::new(v).unwrap();
+        assert!(((g.to_f64() - v) / v).abs() < 1e-9, "{v}");
+    }
+    assert_eq!(Gain::new(0.0), Some(Gain::ZERO));
+    assert_eq!(Gain::new(f64::NAN), None);
+    assert_eq!(Gain::new(1e10), None);
+    assert_eq!(Gain::new(1e-10), None);
+    assert_eq!(Gain::new(1e6).unwrap().apply(Pu::from_num(1)), Pu::MAX);
+}
+
+fn round_shift_reference(x: i64, shift: u32) -> i32 {
+    let r = (x as i128 + (1i128 << (shift - 1))) >> shift;
+    r.clamp(i32::MIN as i128, i32::MAX as i128) as i32
+}
+
+#[test]
+fn round_shift_at_the_corners() {
+    let lim = i64::MAX - (1i64 << 32) + 1;
+    for shift in [1, 2, 23, 24, 30, 31, 32, 33, 48, 62] {
+        for x in [
+            0,
+            1,
+            -1,
+            lim,
+            -lim,
+            1 << 62,
+            -(1 << 62),
+            i32::MAX as i64,
+            i32::MIN as i64,
+        ] {
+            assert_eq!(
+                round_shift_sat(x, shift),
+                round_shift_reference(x, shift),
+                "{x} {shift}"
+            );
+        }
+        let edge = (i32::MAX as i64) << shift;
+        for x in [edge - 1, edge, edge + 1, -edge - 1, -edge, -edge + 1] {
+            assert_eq!(
+                round_shift_sat(x, shift),
+                round_shift_reference(x, shift),
+                "{x} {shift}"
+            );
+        }
+    }
+}
+
+#[test]
+fn coefs_reject_what_they_cannot_hold() {
+    assert_eq!(
+        Coef::<30>::new(1.999_999_999).map(|c| c.bits()),
+        Some(i32::MAX)
+    );
+    assert_eq!(Coef::<30>::new(2.0), None);
+    assert_eq!(Coef::<30>::new(-2.0).map(|c| c.bits()), Some(i32::MIN));
+    assert_eq!(Coef::<24>::new(f64::NAN), None);
+    assert_eq!(
+        Coef::<24>::new(100.0).unwrap().apply(Pu::from_num(2)),
+        Pu::MAX
+    );
+    assert!((Coef::<30>::limit() - 2.0).abs() < 1e-12);
+}
+
+proptest! {
+    #[test]
+    fn reciprocal_within_half_lsb_and_two_ulp(d in 1i32..=i32::MAX, x in any::<i32>()) {
+        // The contract: |x| ≤ d.
+        let x = (x as i64 % (d as i64 + 1)) as i32;
+        let exact = x as f64 * (1u64 << 30) as f64 / d as f64;
+        for r in [Reciprocal::of(d), Reciprocal::from_f64(d as f64).unwrap()] {
+            let got = r.fraction(x) as f64;
+            // 2⁻³⁰ relative from the mantissa, half an LSB from the rounding.
+            prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
+        }
+    }
+
+    #[test]
+    fn reciprocal_of_fractional_divisors(d in 1.0f64..1e9, x in -1.0f64..1.0) {
+        let r = Reciprocal::from_f64(d).unwrap();
+        let xi = libm::round(x * d) as i32;
+        let exact = xi as f64 * (1u64 << 30) as f64 / d;
+        let got = r.fraction(xi) as f64;
+        prop_assert!((got - exact).abs() <= 0.5 + exact.abs() * 2e-9, "{} {}", got, exact);
+        // Q4.28: within one LSB.
+        let got = r.fraction_q28(xi) as f64;
+        prop_assert!((got - exact / 4.0).abs() <= 1.0, "{} {}", got, exact / 4.0);
+    }
+
+    #[test]
+    fn round_shift_matches_exact_rounding(
+        x in -(i64::MAX - (1i64 << 32) + 1)..=(i64::MAX - (1i64 << 32) + 1),
+        shift in 1u32..=62,
+    ) {
+        prop_assert_eq!(round_shift_sat(x, shift), round_shift_reference(x, shift));
+    }
+
+    #[test]
+    fn coef_within_half_lsb(v in -100.0f64..100.0, x in any::<i32>()) {
+        let c = Coef::<24>::new(v).unwrap();
+        prop_assert!((c.to_f64() - v).abs() <= 0.5 / (1u64 << 24) as f64);
+        let exact = x as f64 * c.to_f64();
+        let got = c.apply_bits(x) as f64;
+        if exact.abs() < 2.147e9 {
+            prop_assert!((got - exact).abs() <= 0.5);
+        } else if exact.abs() > 2.1475e9 {
+            prop_assert_eq!(c.apply_bits(x), if exact > 0.0 { i32::MAX } else { i32::MIN });
+        }
+    }
+
+    #[test]
+    fn wide_multiply_from_halves_is_exact(a in any::<i32>(), b in any::<i32>()) {
+        prop_assert_eq!(wmul_halves(a, b), a as i64 * b as i64);
+        prop_assert_eq!(wmul(a, b), a as i64 * b as i64);
+        prop_assert_eq!(wmul_inline(a, b), a as i64 * b as i64);
+        let (ua, ub) = (a as u32, b as u32);
+        prop_assert_eq!(umul_halves(ua, ub), ua as u64 * ub as u64);
+        prop_assert_eq!(umul(ua, ub), ua as u64 * ub as u64);
+    }
+
+    #[test]
+    fn gain_within_half_lsb_plus_relative(v in -1e4f64..1e4, x in any::<i32>()) {
+        let g = Gain::new(v).unwrap();
+        let exact = x as f64 * g.to_f64();
+        let got = g.apply_bits(x) as f64;
+        if exact.abs() < 2.1e9 {
+            prop_assert!((got - exact).abs() <= 0.5 + 1e-9);
+        }
+    }
+
+    #[test]
+    fn mul_within_half_lsb_of_exact(a in any::<i32>(), b in any::<i32>()) {
+        let (a, b) = (Pu::from_bits(a), Pu::from_bits(b));
+        let exact = to_f64(a) * to_f64(b);
+        let got = mul(a, b);
+        if exact.abs() < 127.9 {
+            prop_assert!((to_f64(got) - exact).abs() <= 0.5 / (1u64 << PU_FRAC) as f64);
+        } else {
+            prop_assert_eq!(got, if exact > 0.0 { Pu::MAX } else { Pu::MIN });
+        }
+    }
+}

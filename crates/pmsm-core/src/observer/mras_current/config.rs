@@ -1,0 +1,224 @@
+//! The fixed-point configuration of the current-model MRAS, computed once from the motor, the
+//! bases and the gains (module docs, "Discretisation" and "Formats").
+
+use super::*;
+use crate::error::ConfigError;
+use crate::num::{Coef, Pu, pu_from_f64};
+use crate::params::MotorParams;
+use crate::units::PerUnit;
+
+/// Configuration of the [`MrasCurrent`] estimator.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MrasCurrentConfig {
+    /// Weights of the composed Strang step (module docs, "Discretisation"):
+    /// `X_d = xd_i î_d + xd_v v_d + Ψ_d`, `X_q = xq_i î_q + xq_v v_q`,
+    /// `Y_q = yq_i î_q + yq_v v_q`, `Y_d = yd_i î_d + yd_v v_d + Ψ_q`.
+    pub(super) xd_i: Coef<MODEL_FRAC>,
+    pub(super) xd_v: Coef<MODEL_FRAC>,
+    pub(super) xq_i: Coef<MODEL_FRAC>,
+    pub(super) xq_v: Coef<MODEL_FRAC>,
+    pub(super) yq_i: Coef<MODEL_FRAC>,
+    pub(super) yq_v: Coef<MODEL_FRAC>,
+    pub(super) yd_i: Coef<MODEL_FRAC>,
+    pub(super) yd_v: Coef<MODEL_FRAC>,
+    /// `Ψ_d = a_d ψ/L_d` in Q8.24, and the same in the weights' accumulator (`× 2^MODEL_FRAC`).
+    pub(super) off_d: Pu,
+    pub(super) off_d_acc: i64,
+    /// `Ψ_q = a_q ψ/L_q` in the weights' accumulator.
+    pub(super) off_q_acc: i64,
+    /// `ρ² = (L_q/L_d)²` and `ψ/L_d` of ξ̃ (eq. 22 × L_q/L_d).
+    pub(super) rho2: Coef<26>,
+    pub(super) psi_ld: Pu,
+    /// `ξ' = (L_d/ψ) ξ̃`, for [`MrasCurrent::xi`] only.
+    pub(super) xi_scale: Coef<24>,
+    /// Angle step per unit of speed: `ω_b T_s 2³³/(2π)`; times `2^TURN_SHIFT` gives 2⁻⁶⁴ turns.
+    pub(super) turn_per_speed: i32,
+    /// Speed integrator (Q9.55 increments): `K_i T_s`, `T_s p K_T I_b/(J ω_b)`, `T_s B/J`.
+    pub(super) ki_ts: Coef<31>,
+    pub(super) accel: Coef<31>,
+    pub(super) friction: Coef<31>,
+    /// Proportional gain on ξ̃, and the back-calculation gain `min(1, K_i T_s/K_p)` (zero:
+    /// `K_p = 0`, conditional integration).
+    pub(super) kp: Coef<24>,
+    pub(super) kt: Coef<30>,
+    /// Load-current estimate change per sample per unit of ξ̃, `T_s K_L I_b/ρ` (per unit).
+    pub(super) load_gain: Coef<27>,
+    /// Speed clamp, per unit, and in Q9.55.
+    pub(super) omega_max: Pu,
+    pub(super) omega_max_wide: i64,
+    /// Gains it was built with.
+    pub gains: MrasCurrentGains,
+}
+
+/// `value` as a `Coef<F>` if it is in `[min, max]` and representable, else the typed error
+/// naming `key` (the motor parameter or gain the coefficient comes from).
+fn coef<const F: u32>(
+    key: &'static str,
+    value: f64,
+    min: f64,
+    max: f64,
+) -> Result<Coef<F>, ConfigError> {
+    let err = ConfigError::Gain {
+        key,
+        value,
+        min,
+        max,
+    };
+    if !(value >= min && value <= max) {
+        return Err(err);
+    }
+    Coef::new(value).ok_or(err)
+}
+
+/// A per-unit constant in `[min, max]` as [`Pu`], else the typed error naming `key`.
+fn pu_in(key: &'static str, value: f64, min: f64, max: f64) -> Result<Pu, ConfigError> {
+    if value >= min && value <= max {
+        Ok(pu_from_f64(value))
+    } else {
+        Err(ConfigError::Gain {
+            key,
+            value,
+            min,
+            max,
+        })
+    }
+}
+
+impl MrasCurrentConfig {
+    /// Estimator for `motor` sampled as in `base`, with adaptation gains `gains`
+    /// ([`MrasCurrentGains::default_for`] for the defaults).
+    ///
+    /// Errors: [`ConfigError::Param`] for a bad motor parameter; [`ConfigError::Gain`] naming
+    /// `mras_current.kp`, `mras_current.ki` or `mras_current.kl` outside the ranges of the
+    /// module docs, or naming the motor parameter (`ld_h`, `lq_h`, `j_kg_m2`, `b_nm_s`,
+    /// `sample_hz`) of a coefficient outside its format (module docs, "Formats").
+    pub fn new(
+        motor: &MotorParams,
+        base: &PerUnit,
+        gains: MrasCurrentGains,
+    ) -> Result<Self, ConfigError> {
+        motor.validate()?;
+        let ts = base.sample_s;
+        let k_inf = MrasCurrentGains::k_inf(motor);
+        let kp_max = 1.0 / (k_inf * ts);
+        let ki_max = 0.25 / (k_inf * ts * ts);
+        let a = motor.p() * motor.kt_nm_per_a / motor.j_kg_m2;
+        let kl_max = 0.1 / (a * k_inf * ts * ts * ts);
+        for (key, v, max) in [
+            ("mras_current.kp", gains.kp, kp_max),
+            ("mras_current.ki", gains.ki, ki_max),
+            ("mras_current.kl", gains.kl, kl_max),
+        ] {
+            if !(v >= 0.0 && v <= max) {
+                return Err(ConfigError::Gain {
+                    key,
+                    value: v,
+                    min: 0.0,
+                    max,
+                });
+            }
+        }
+        let mech = gains.kl > 0.0;
+        let (r, ld, lq, psi) = (
+            motor.rs_ohm / base.impedance_ohm,
+            motor.ld_h / base.inductance_h,
+            motor.lq_h / base.inductance_h,
+            motor.flux_wb / base.flux_wb,
+        );
+        let rho = lq / ld;
+        let a_d = libm::exp(-0.5 * motor.rs_ohm * ts / motor.ld_h);
+        let a_q = libm::exp(-0.5 * motor.rs_ohm * ts / motor.lq_h);
+        let (g_d, g_q) = ((1.0 - a_d) / r, (1.0 - a_q) / r);
+        let (psi_d, psi_q) = (psi / ld, psi / lq);
+        let m = |key, v| coef::<MODEL_FRAC>(key, v, 0.0, MODEL_MAX);
+        let off_d = pu_in("ld_h", a_d * psi_d, 0.0, OFFSET_MAX)?;
+        let off_q = pu_in("lq_h", a_q * psi_q, 0.0, OFFSET_MAX)?;
+        // ξ̃ = (L_q/L_d) ξ: gains on ξ̃ are the SI gains times I_b²/(ρ ω_b) (ξ in A², ω in pu).
+        let scale = base.current_a * base.current_a / (rho * base.omega_e_rad_s);
+        let omega_max = MAX_SPEED_PU.min(1.0 / (base.omega_e_rad_s * ts));
+        // The per-unit formats bound the SI gains too (errors in SI units, as given).
+        let kp = Coef::<24>::new(gains.kp * scale).ok_or(gain_err(
+            "mras_current.kp",
+            gains.kp,
+            Coef::<24>::limit() / scale,
+        ))?;
+        let ki_ts = Coef::<31>::new(gains.ki * ts * scale).ok_or(gain_err(
+            "mras_current.ki",
+            gains.ki,
+            Coef::<31>::limit() / (ts * scale),
+        ))?;
+        let load_scale = ts * base.current_a / rho;
+        let load_gain = Coef::<27>::new(gains.kl * load_scale).ok_or(gain_err(
+            "mras_current.kl",
+            gains.kl,
+            Coef::<27>::limit() / load_scale,
+        ))?;
+        // Back-calculation gain from the stored values (as the f64 model of a PI would).
+        let kt = if kp.bits() > 0 {
+            Coef::new((ki_ts.to_f64() / kp.to_f64()).min(1.0)).unwrap_or(Coef::ZERO)
+        } else {
+            Coef::ZERO
+        };
+        let accel = if mech {
+            ts * motor.p() * motor.kt_nm_per_a * base.current_a
+                / (motor.j_kg_m2 * base.omega_e_rad_s)
+        } else {
+            0.0
+        };
+        let friction = if mech {
+            ts * motor.b_nm_s / motor.j_kg_m2
+        } else {
+            0.0
+        };
+        // ω_b T_s ≤ 1 rad (the envelope of `PerUnit`) keeps this below 2^31.
+        let turn =
+            libm::round(base.omega_e_rad_s * ts * libm::ldexp(1.0, 33) / core::f64::consts::TAU);
+        let turn_max = i32::MAX as f64;
+        if !(turn >= 0.0 && turn <= turn_max) {
+            return Err(ConfigError::Gain {
+                key: "sample_hz",
+                value: 1.0 / ts,
+                min: base.omega_e_rad_s * libm::ldexp(1.0, 33)
+                    / (core::f64::consts::TAU * turn_max),
+                max: f64::INFINITY,
+            });
+        }
+        let turn_per_speed = turn as i32;
+        Ok(Self {
+            xd_i: m("ld_h", a_d * a_d)?,
+            xd_v: m("ld_h", (1.0 + a_d) * g_d)?,
+            xq_i: m("lq_h", a_d * a_q * rho)?,
+            xq_v: m("lq_h", a_d * rho * g_q + g_d)?,
+            yq_i: m("lq_h", a_q * a_q)?,
+            yq_v: m("lq_h", (1.0 + a_q) * g_q)?,
+            yd_i: m("ld_h", a_q * a_d / rho)?,
+            yd_v: m("ld_h", a_q * g_d / rho + g_q)?,
+            off_d,
+            off_d_acc: (off_d.to_bits() as i64) << MODEL_FRAC,
+            off_q_acc: (off_q.to_bits() as i64) << MODEL_FRAC,
+            rho2: coef("lq_h", rho * rho, 0.0, 16.0)?,
+            psi_ld: pu_in("ld_h", psi_d, 0.0, OFFSET_MAX)?,
+            xi_scale: coef("ld_h", ld / psi, 0.0, Coef::<24>::limit())?,
+            turn_per_speed,
+            ki_ts,
+            accel: coef("j_kg_m2", accel, 0.0, MECH_MAX)?,
+            friction: coef("b_nm_s", friction, 0.0, MECH_MAX)?,
+            kp,
+            kt,
+            load_gain,
+            omega_max: pu_from_f64(omega_max),
+            omega_max_wide: (pu_from_f64(omega_max).to_bits() as i64) << INTEG_EXTRA,
+            gains,
+        })
+    }
+}
+
+/// The error for an SI gain whose per-unit coefficient does not fit its format.
+fn gain_err(key: &'static str, value: f64, max: f64) -> ConfigError {
+    ConfigError::Gain {
+        key,
+        value,
+        min: 0.0,
+        max,
+    }
+}
