@@ -18,6 +18,7 @@
 //! | [`deadtime`] | dead-time compensation (seed 001 eq. 6–9) |
 //! | [`control`] | PI current loops and the IP speed loop, with anti-windup |
 //! | [`ipd`] | initial rotor position from voltage pulses, with N/S polarity |
+//! | [`identify`] | self-commissioning: R, L_d, L_q, ψ, J and B measured at start-up |
 //! | [`drive`] | the drive: state machine and data flow of one control step |
 //! | [`hal`] | the narrow hardware traits a board binding implements (PWM, current sampling) |
 #![no_std]
@@ -41,6 +42,7 @@ pub mod drive;
 pub mod error;
 pub mod frames;
 pub mod hal;
+pub mod identify;
 pub mod ipd;
 pub mod num;
 pub mod observer;
@@ -51,6 +53,7 @@ pub mod units;
 pub use angle::{Angle, SinCos};
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq};
+pub use identify::{Identify, IdentifyConfig, IdentifyDesign, IdentifyError, Identified};
 pub use num::{Pu, Unit};
 pub use params::{InverterParams, MotorParams, ParamError};
 pub use units::PerUnit;

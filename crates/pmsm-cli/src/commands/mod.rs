@@ -1,5 +1,6 @@
 //! One module per subcommand of `pmsm`.
 
+pub mod identify;
 pub mod ipd;
 pub mod observe;
 pub mod plant;
