@@ -106,6 +106,7 @@ pub fn identify(
     for n in 0..limit {
         let vdc = pmsm_core::num::pu_from_f64(plant.vdc_v() / v_b);
         let o = id.step(i, vdc);
+        if std::env::var("IDDBG").is_ok() && n % 2000 == 0 { eprintln!("{n} {:?} th={:.2}deg w={:.1} i={:?}", o.stage, plant.motor().state().theta_e_rad.to_degrees(), plant.motor().state().omega_m_rad_s, plant.motor().i_dq()); }
         if let Some(r) = id.poll() {
             let identified = r.map_err(|e| anyhow!("identification failed: {e}"))?;
             return Ok(Run {

@@ -30,6 +30,7 @@ pub struct IdentifyOutput {
 struct LevelSums {
     v: i64,
     i: i64,
+    beta: i64,
     first: i64,
     second: i64,
     n: u32,
@@ -52,7 +53,9 @@ struct WindowSums {
     c_start: i64,
     c_end: i64,
     n: u32,
-    speed_q16: u64,
+    /// Σ of the field's actual step (commanded speed with the damper's correction).
+    speed_sum: u64,
+    speed_n: u32,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -107,6 +110,9 @@ pub struct Identify {
     omega1_q16: u64,
     omega2_q16: u64,
     energy: i64,
+    retries: u32,
+    /// Slow mean of the spin's x voltage (`Pu` bits × 2¹²), for the hunting damper.
+    vx_mean: i64,
     // Background results (f64, off the per-sample path).
     r_ohm: f64,
     v0_v: f64,
@@ -117,6 +123,9 @@ pub struct Identify {
 }
 
 const Q24: i64 = 1 << 24;
+
+/// Windows repeated in all while the rotor still moves at the resistance levels.
+const MAX_RETRIES: u32 = 16;
 
 impl Identify {
     /// Ready to start.
@@ -151,6 +160,8 @@ impl Identify {
             omega1_q16: 0,
             omega2_q16: 0,
             energy: 0,
+            retries: 0,
+            vx_mean: 0,
             r_ohm: 0.0,
             v0_v: 0.0,
             r_rms_v: 0.0,
@@ -322,8 +333,14 @@ impl Identify {
             self.v_hold = v;
             return Ok(v);
         }
-        if k == c.n_settle && self.saturated {
-            return Err(IdentifyError::Saturation(Stage::Resistance));
+        if k == c.n_settle {
+            if self.saturated {
+                return Err(IdentifyError::Saturation(Stage::Resistance));
+            }
+            // At standstill the β voltage that keeps β current at zero is zero (the phase
+            // currents' signs are symmetric about α); what the loop holds there now only
+            // answers the rotor's motion, and holding it would pull the rotor off α.
+            self.v_hold.beta = Pu::ZERO;
         }
         let w0 = c.n_settle + c.n_hold;
         if k >= w0 {
@@ -331,6 +348,7 @@ impl Identify {
             if let Some(s) = self.levels.get_mut(li) {
                 s.v += self.v_hold.alpha.to_bits() as i64;
                 s.i += ia as i64;
+                s.beta += ib as i64;
                 if j < c.n_window / 2 {
                     s.first += ia as i64;
                 } else if j < 2 * (c.n_window / 2) {
@@ -344,8 +362,20 @@ impl Identify {
                 if 2 * s.i < r * n {
                     return Err(IdentifyError::NoCurrent(Stage::Resistance));
                 }
-                if 100 * (s.first - s.second).abs() > 2 * r * (c.n_window / 2) as i64 {
-                    return Err(IdentifyError::RotorMoved(Stage::Resistance));
+                if 100 * (s.first - s.second).abs() > 2 * r * (c.n_window / 2) as i64
+                    || 50 * s.beta.abs() > r * n
+                {
+                    // Still swinging (the held voltage brakes it through R): measure again,
+                    // a bounded number of times.
+                    if self.retries >= MAX_RETRIES {
+                        return Err(IdentifyError::RotorMoved(Stage::Resistance));
+                    }
+                    self.retries += 1;
+                    if let Some(s) = self.levels.get_mut(li) {
+                        *s = LevelSums::default();
+                    }
+                    self.k = w0;
+                    return Ok(self.v_hold);
                 }
                 self.k = 0;
                 self.hold_integrators(self.v_hold);
@@ -429,6 +459,7 @@ impl Identify {
         self.phase_q16 = 0;
         self.speed_q16 = 0;
         self.energy = 0;
+        self.vx_mean = (self.v_hold.alpha.to_bits() as i64) << 12;
         self.hold_integrators(self.v_hold);
     }
 
@@ -447,6 +478,7 @@ impl Identify {
         let (ix, iy) = (ic.d.to_bits() as i64, ic.q.to_bits() as i64);
         self.energy += (vx * ix + vy * iy) >> 24;
         let accel = c.accel_q16;
+        let mut w_open = false;
         match seg {
             Seg::First => {
                 self.speed_q16 += accel;
@@ -459,13 +491,13 @@ impl Identify {
             }
             Seg::Hold(h) => {
                 let k = self.k;
+                w_open = k >= c.n_settle;
                 self.k += 1;
                 if k >= c.n_settle {
                     let e = self.energy;
                     if let Some(w) = self.windows.get_mut(h as usize) {
                         if w.n == 0 {
                             w.c_start = e;
-                            w.speed_q16 = self.speed_q16;
                         }
                         w.v[0] += vx;
                         w.v[1] += vy;
@@ -512,9 +544,23 @@ impl Identify {
                 }
             }
         }
+        // Hunting damper: the x voltage carries `ω ψ sin δ`; slowing the field when it rises
+        // above its slow mean (the rotor falling behind) damps the load angle's oscillation
+        // (`δ'' + c cos δ δ' + (K/J) sin δ = 0`), which open-loop I–f otherwise lacks.
+        self.vx_mean += vx - (self.vx_mean >> 12);
+        let dv = vx - (self.vx_mean >> 12);
+        let corr = (c.damp_q24 * dv) >> 24;
+        let step = (self.speed_q16 as i64 - corr).max(0) as u64;
         // Output at the middle of the coming period's angle (the vector turns during it).
-        let out_angle = Angle(((self.phase_q16 + self.speed_q16 / 2) >> 16) as u32 as i32);
-        self.phase_q16 = self.phase_q16.wrapping_add(self.speed_q16);
+        let out_angle = Angle(((self.phase_q16 + step / 2) >> 16) as u32 as i32);
+        self.phase_q16 = self.phase_q16.wrapping_add(step);
+        if let Seg::Hold(h) = seg
+            && w_open
+            && let Some(w) = self.windows.get_mut(h as usize)
+        {
+            w.speed_sum += step;
+            w.speed_n += 1;
+        }
         Ok((
             AlphaBeta {
                 alpha: v.d,
@@ -628,10 +674,11 @@ impl Identify {
         // u = v − R i in the current's frame, against ω.
         let mut ux = [(0.0, 0.0); 3];
         let mut uy = [(0.0, 0.0); 3];
+        let speed = |s: &WindowSums| c.omega_e(s.speed_sum) / s.speed_n.max(1) as f64;
         let mut i_f = 0.0;
         for k in 0..3 {
             let s = &w[k];
-            let om = c.omega_e(s.speed_q16);
+            let om = speed(s);
             let (vx, ix) = mean(s, 0);
             let (vy, iy) = mean(s, 1);
             ux[k] = (om, vx - self.r_ohm * ix);
@@ -662,8 +709,8 @@ impl Identify {
         let power = |s: &WindowSums| {
             (s.c_end - s.c_start) as f64 / (s.n.max(2) - 1) as f64 * joules / c.sample_s
         };
-        let w1 = c.omega_e(w[0].speed_q16) / p;
-        let w2 = c.omega_e(w[1].speed_q16) / p;
+        let w1 = 0.5 * (speed(&w[0]) + speed(&w[2])) / p;
+        let w2 = speed(&w[1]) / p;
         let dw2 = w1 * w1 - w2 * w2;
         if !(dw2 > 0.0) {
             return Err(IdentifyError::Noise(Stage::Inertia));
@@ -685,7 +732,7 @@ impl Identify {
             distortion_v: self.v0_v,
             resistance_residual_v: self.r_rms_v,
             load_angle_rad: delta,
-            spin_speeds_rad_s: [c.omega_e(w[0].speed_q16), c.omega_e(w[1].speed_q16)],
+            spin_speeds_rad_s: [w1 * p, w2 * p],
         })
     }
 }

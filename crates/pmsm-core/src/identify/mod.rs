@@ -108,6 +108,8 @@ pub struct IdentifyDesign {
     pub max_speed_m_rad_s: f64,
     /// Voltage that ends the first ramp, fraction of `V_b`.
     pub spin_voltage_pu: f64,
+    /// Damping rate of the spin's hunting damper at the first spin speed, 1/s.
+    pub damping_per_s: f64,
     /// Proportional gain of the current loop, `V_b/I_b`.
     pub kp_pu: f64,
     /// Integral gain per sample, relative to the proportional gain.
@@ -130,6 +132,7 @@ impl Default for IdentifyDesign {
             accel_m_rad_s2: 200.0,
             max_speed_m_rad_s: 200.0,
             spin_voltage_pu: 0.45,
+            damping_per_s: 150.0,
             kp_pu: 0.2,
             ki_per_sample: 0.02,
             trip_pu: 1.5,
@@ -163,6 +166,8 @@ pub struct IdentifyConfig {
     /// Speed increment per sample, angle counts × 2⁻¹⁶ per sample.
     pub(crate) accel_q16: u64,
     pub(crate) max_speed_q16: u64,
+    /// Speed correction per `Pu` bit of x voltage, angle counts × 2⁻¹⁶ per sample, × 2⁻²⁴.
+    pub(crate) damp_q24: i64,
 }
 
 fn samples(key: &'static str, t_s: f64, ts: f64) -> Result<u32, ConfigError> {
@@ -226,6 +231,7 @@ impl IdentifyConfig {
         in_range("identify.accel_m_rad_s2", design.accel_m_rad_s2, 1.0, 1e5)?;
         in_range("identify.max_speed_m_rad_s", design.max_speed_m_rad_s, 1.0, 1e4)?;
         in_range("identify.spin_voltage_pu", design.spin_voltage_pu, 0.05, 0.8)?;
+        in_range("identify.damping_per_s", design.damping_per_s, 0.0, 1e4)?;
         in_range("identify.kp_pu", design.kp_pu, 0.01, 0.8)?;
         in_range("identify.ki_per_sample", design.ki_per_sample, 1e-4, 0.2)?;
         in_range("identify.trip_pu", design.trip_pu, 1.0, 3.0)?;
@@ -253,6 +259,10 @@ impl IdentifyConfig {
             accel_q16: libm::round(design.accel_m_rad_s2 * p * ts * ts * Q16_COUNTS_PER_RAD)
                 .max(1.0) as u64,
             max_speed_q16: libm::round(max_w_e * ts * Q16_COUNTS_PER_RAD) as u64,
+            // Δω = (c / v_spin) Δv_x: at the first speed v_x ≈ v_spin sin δ.
+            damp_q24: libm::round(
+                design.damping_per_s / design.spin_voltage_pu * ts * Q16_COUNTS_PER_RAD,
+            ) as i64,
         })
     }
 
