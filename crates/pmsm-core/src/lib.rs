@@ -53,7 +53,7 @@ pub mod units;
 pub use angle::{Angle, SinCos};
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq};
-pub use identify::{Identify, IdentifyConfig, IdentifyDesign, IdentifyError, Identified};
+pub use identify::{Identified, Identify, IdentifyConfig, IdentifyDesign, IdentifyError};
 pub use num::{Pu, Unit};
 pub use params::{InverterParams, MotorParams, ParamError};
 pub use units::PerUnit;

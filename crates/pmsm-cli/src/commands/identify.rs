@@ -32,7 +32,12 @@ pub struct Args {
     #[arg(long, value_name = "A")]
     pub current_limit_a: Option<f64>,
     /// Initial electrical rotor angle of the plant, degrees.
-    #[arg(long, value_name = "DEG", default_value_t = 40.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 40.0,
+        allow_negative_numbers = true
+    )]
     pub theta_deg: f64,
     /// Use the averaged inverter model (faster) instead of the switching one.
     #[arg(long)]
@@ -106,7 +111,7 @@ pub fn identify(
     for n in 0..limit {
         let vdc = pmsm_core::num::pu_from_f64(plant.vdc_v() / v_b);
         let o = id.step(i, vdc);
-        if std::env::var("IDDBG").is_ok() && n % 2000 == 0 { eprintln!("{n} {:?} th={:.2}deg w={:.1} i={:?}", o.stage, plant.motor().state().theta_e_rad.to_degrees(), plant.motor().state().omega_m_rad_s, plant.motor().i_dq()); }
+
         if let Some(r) = id.poll() {
             let identified = r.map_err(|e| anyhow!("identification failed: {e}"))?;
             return Ok(Run {
@@ -207,7 +212,10 @@ pub fn run(args: &Args) -> Result<()> {
         "pmsm identify: {} at {} V, {} Hz, dead time {} s, limit {limit:.3} A: {:.2} s",
         truth.name, args.vdc, args.pwm_hz, args.dead_time_s, run.duration_s
     );
-    println!("  {:<10} {:>13} {:>13} {:>9}", "", "identified", "plant", "error");
+    println!(
+        "  {:<10} {:>13} {:>13} {:>9}",
+        "", "identified", "plant", "error"
+    );
     for (key, got, want) in [
         ("rs_ohm", m.rs_ohm, t.rs_ohm),
         ("ld_h", m.ld_h, t.ld_h),

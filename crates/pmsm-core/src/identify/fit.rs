@@ -22,7 +22,7 @@ pub fn line(points: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
     }
     let ata = Matrix2::new(sxx, sx, sx, n as f64);
     let sol = ata.try_inverse()? * Vector2::new(sxy, sy);
-    let (k, b) = (sol[0], sol[1]);
+    let (k, b) = (sol.x, sol.y);
     let ss: f64 = points
         .iter()
         .map(|p| {
@@ -92,7 +92,10 @@ mod tests {
             // ψ_c = R(−δ) ψ_dq.
             let psi_c = (pd * c + pq * s, -pd * s + pq * c);
             let (m, d) = magnet_flux(psi_c, i, ld, lq);
-            assert!((m - psi).abs() < 1e-12 && (d - delta).abs() < 1e-12, "{delta}");
+            assert!(
+                (m - psi).abs() < 1e-12 && (d - delta).abs() < 1e-12,
+                "{delta}"
+            );
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The identification's state machine: integer per-sample step, `f64` poll.
 
 use super::fit::{inductance_from_ripple, line, magnet_flux};
-use super::{IdentifyConfig, IdentifyError, Identified, Stage};
+use super::{Identified, IdentifyConfig, IdentifyError, Stage};
 use crate::angle::Angle;
 use crate::frames::{AlphaBeta, Dq, inverse_clarke, inverse_park, park};
 use crate::num::{Pu, pu_from_f64, sat_i32};
@@ -334,6 +334,9 @@ impl Identify {
             return Ok(v);
         }
         if k == c.n_settle {
+            if 2 * ia < r {
+                return Err(IdentifyError::NoCurrent(Stage::Resistance));
+            }
             if self.saturated {
                 return Err(IdentifyError::Saturation(Stage::Resistance));
             }
@@ -467,10 +470,7 @@ impl Identify {
         let c = self.config;
         let angle = Angle((self.phase_q16 >> 16) as u32 as i32);
         let ic = park(i, angle.sin_cos());
-        let v = self.pi([
-            self.spin_bits - ic.d.to_bits(),
-            -ic.q.to_bits(),
-        ]);
+        let v = self.pi([self.spin_bits - ic.d.to_bits(), -ic.q.to_bits()]);
         if self.saturated && !matches!(seg, Seg::Stop | Seg::Rest) {
             return Err(IdentifyError::Saturation(Stage::Flux));
         }
@@ -615,7 +615,7 @@ impl Identify {
         let (r, v0, rms) = line(&pts).ok_or(IdentifyError::Noise(Stage::Resistance))?;
         // The line must explain the points to a small fraction of the voltage span.
         let span = pts[3].1 - pts[0].1;
-        if !(r > 0.0) || rms > 0.05 * span.abs() {
+        if r.is_nan() || r <= 0.0 || rms > 0.05 * span.abs() {
             return Err(IdentifyError::Noise(Stage::Resistance));
         }
         self.r_ohm = r;
@@ -676,13 +676,12 @@ impl Identify {
         let mut uy = [(0.0, 0.0); 3];
         let speed = |s: &WindowSums| c.omega_e(s.speed_sum) / s.speed_n.max(1) as f64;
         let mut i_f = 0.0;
-        for k in 0..3 {
-            let s = &w[k];
+        for ((s, x), y) in w.iter().zip(ux.iter_mut()).zip(uy.iter_mut()) {
             let om = speed(s);
             let (vx, ix) = mean(s, 0);
             let (vy, iy) = mean(s, 1);
-            ux[k] = (om, vx - self.r_ohm * ix);
-            uy[k] = (om, vy - self.r_ohm * iy);
+            *x = (om, vx - self.r_ohm * ix);
+            *y = (om, vy - self.r_ohm * iy);
             i_f += ix / 3.0;
         }
         let (ax, bx, _) = line(&ux).ok_or(IdentifyError::Noise(Stage::Flux))?;
@@ -690,16 +689,17 @@ impl Identify {
         // u = jω ψ_c + v_off: u_x = −ω ψ_c,y, u_y = ω ψ_c,x.
         let psi_c = (ay, -ax);
         let (psi, delta) = magnet_flux(psi_c, i_f, ld, lq);
-        if !(psi > 0.0) || !psi.is_finite() {
+        if psi.is_nan() || psi <= 0.0 || !psi.is_finite() {
             return Err(IdentifyError::Noise(Stage::Flux));
         }
         // Each window on its own (offset from the fit) must agree: a rotor that slipped
         // out of the rotating field shows a much smaller flux at one speed.
-        for k in 0..3 {
-            let om = ux[k].0;
-            let pc = ((uy[k].1 - by) / om, -(ux[k].1 - bx) / om);
+        for (x, y) in ux.iter().zip(uy.iter()) {
+            let om = x.0;
+            let pc = ((y.1 - by) / om, -(x.1 - bx) / om);
             let (pk, _) = magnet_flux(pc, i_f, ld, lq);
-            if !(libm::fabs(pk / psi - 1.0) < 0.1) {
+            let dev = libm::fabs(pk / psi - 1.0);
+            if dev.is_nan() || dev >= 0.1 {
                 return Err(IdentifyError::RotorMoved(Stage::Flux));
             }
         }
@@ -709,18 +709,19 @@ impl Identify {
         let power = |s: &WindowSums| {
             (s.c_end - s.c_start) as f64 / (s.n.max(2) - 1) as f64 * joules / c.sample_s
         };
-        let w1 = 0.5 * (speed(&w[0]) + speed(&w[2])) / p;
-        let w2 = speed(&w[1]) / p;
+        let [h1a, h2, h1b] = w;
+        let w1 = 0.5 * (speed(&h1a) + speed(&h1b)) / p;
+        let w2 = speed(&h2) / p;
         let dw2 = w1 * w1 - w2 * w2;
-        if !(dw2 > 0.0) {
+        if dw2.is_nan() || dw2 <= 0.0 {
             return Err(IdentifyError::Noise(Stage::Inertia));
         }
-        let b = ((0.5 * (power(&w[0]) + power(&w[2])) - power(&w[1])) / dw2).max(0.0);
-        let e_down = cbar(&w[1]) - cbar(&w[0]);
-        let e_up = cbar(&w[2]) - cbar(&w[1]);
+        let b = ((0.5 * (power(&h1a) + power(&h1b)) - power(&h2)) / dw2).max(0.0);
+        let e_down = cbar(&h2) - cbar(&h1a);
+        let e_up = cbar(&h1b) - cbar(&h2);
         let s_settle = c.n_settle as f64 * c.sample_s;
         let j = (e_up - e_down - b * s_settle * dw2) / dw2;
-        if !(j > 0.0) || !j.is_finite() {
+        if j.is_nan() || j <= 0.0 || !j.is_finite() {
             return Err(IdentifyError::Noise(Stage::Inertia));
         }
         let motor = MotorParams::new(c.pole_pairs, self.r_ohm, ld, lq, psi, j, b);

@@ -229,8 +229,18 @@ impl IdentifyConfig {
         in_range("identify.ripple_pu", design.ripple_pu, 0.02, 0.5)?;
         in_range("identify.spin_current_pu", design.spin_current_pu, 0.1, 0.9)?;
         in_range("identify.accel_m_rad_s2", design.accel_m_rad_s2, 1.0, 1e5)?;
-        in_range("identify.max_speed_m_rad_s", design.max_speed_m_rad_s, 1.0, 1e4)?;
-        in_range("identify.spin_voltage_pu", design.spin_voltage_pu, 0.05, 0.8)?;
+        in_range(
+            "identify.max_speed_m_rad_s",
+            design.max_speed_m_rad_s,
+            1.0,
+            1e4,
+        )?;
+        in_range(
+            "identify.spin_voltage_pu",
+            design.spin_voltage_pu,
+            0.05,
+            0.8,
+        )?;
         in_range("identify.damping_per_s", design.damping_per_s, 0.0, 1e4)?;
         in_range("identify.kp_pu", design.kp_pu, 0.01, 0.8)?;
         in_range("identify.ki_per_sample", design.ki_per_sample, 1e-4, 0.2)?;
