@@ -71,6 +71,10 @@ pub struct Scenario {
     pub sensing: Sensing,
     /// `[faults]`: faults injected into the plant.
     pub faults: Faults,
+    /// `[thermal]` and `control.model_motor` (`scenario_extras`).
+    pub thermal: Option<pmsm_plant::Thermal>,
+    /// The drive's motor from `control.model_motor`.
+    pub model_motor: Option<Motor>,
 }
 
 /// `[faults]` of a scenario: faults injected into the plant at given times.
@@ -224,7 +228,7 @@ pub enum Startup {
 }
 
 /// `[control]` of a scenario.
-#[derive(Clone, Copy, Debug, Deserialize)]
+#[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Control {
     /// Control sample rate, Hz (default: the PWM frequency).
@@ -256,6 +260,8 @@ pub struct Control {
     /// Trip on loss of lock when the estimator's filtered health figure exceeds this, per unit
     /// (`Protection::health_limit_pu`; default: report only).
     pub health_limit_pu: Option<f64>,
+    /// Motor file the drive is designed from (`scenario_extras`); the plant keeps `motor`.
+    pub model_motor: Option<String>,
 }
 
 /// Where dead-time compensation applies (`deadtime_compensation`).
@@ -390,6 +396,7 @@ struct RawScenario {
     sensing: Sensing,
     #[serde(default)]
     faults: Faults,
+    thermal: Option<crate::scenario_extras::RawThermal>,
 }
 
 fn breakpoints(
@@ -548,13 +555,15 @@ pub fn read(path: &Path) -> Result<Scenario> {
         duration_s: raw.duration_s,
         motor,
         inverter: raw.inverter,
-        control: raw.control,
         theta0_rad: raw.initial.theta_e_deg.to_radians(),
         omega_m0_rad_s: raw.initial.speed_rpm * std::f64::consts::TAU / 60.0,
         speed_ref,
         load,
         sensing: raw.sensing,
         faults: raw.faults,
+        thermal: crate::scenario_extras::thermal(raw.thermal.as_ref(), &shown.to_string())?,
+        model_motor: crate::scenario_extras::model_motor(raw.control.model_motor.as_deref(), path)?,
+        control: raw.control,
     })
 }
 

@@ -120,7 +120,7 @@ pub struct Run {
 pub fn run_scenario(sc: &Scenario) -> Result<Run> {
     let shown = sc.path.display();
     // The drive's model of the motor; the plant keeps the true one.
-    let mut model = sc.motor.model.params;
+    let mut model = sc.model_motor.as_ref().unwrap_or(&sc.motor).model.params;
     model.rs_ohm *= sc.control.model_rs_factor.unwrap_or(1.0);
     model.ld_h *= sc.control.model_l_factor.unwrap_or(1.0);
     model.lq_h *= sc.control.model_l_factor.unwrap_or(1.0);
@@ -269,6 +269,10 @@ pub fn run_scenario(sc: &Scenario) -> Result<Run> {
             .apply(t, &mut plant, last_codes)
             .map_err(|e| anyhow!("{shown}: t = {t:.6} s: {e}"))?;
         let load = sc.load.at(t);
+        if let Some(th) = &sc.thermal {
+            th.apply(&mut plant)
+                .map_err(|e| anyhow!("{shown}: thermal: {e}"))?;
+        }
         for _ in 0..ratio {
             let sample = if out.pwm_on {
                 plant.step_pwm(out.duties.to_f64(), load)
