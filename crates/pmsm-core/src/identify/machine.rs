@@ -596,6 +596,12 @@ impl Identify {
         }
     }
 
+    /// What the resistance and inductance steps have measured so far (zero before):
+    /// `(R Ω, distortion V, [L_d H, L_q H])`.
+    pub fn measured(&self) -> (f64, f64, [f64; 2]) {
+        (self.r_ohm, self.v0_v, self.inductance_h)
+    }
+
     fn report(&mut self) -> Option<Result<Identified, IdentifyError>> {
         if self.reported {
             None
@@ -660,8 +666,9 @@ impl Identify {
     fn finish(&mut self) -> Result<Identified, IdentifyError> {
         let c = self.config;
         let ld = self.burst_inductance(1)?;
+        self.inductance_h[0] = ld;
         let lq = self.burst_inductance(3)?;
-        self.inductance_h = [ld, lq];
+        self.inductance_h[1] = lq;
         let p = c.pole_pairs as f64;
         let w = self.windows;
         let mean = |s: &WindowSums, k: usize| -> (f64, f64) {

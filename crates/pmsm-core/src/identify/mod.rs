@@ -83,6 +83,8 @@
 
 mod fit;
 mod machine;
+#[cfg(test)]
+mod tests;
 
 pub use fit::{inductance_from_ripple, line, magnet_flux};
 pub use machine::{Identify, IdentifyOutput};
