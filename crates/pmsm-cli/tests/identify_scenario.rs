@@ -146,3 +146,55 @@ fn scenario_keys_are_checked() {
     assert!(e.contains("control.model_motor"), "{e}");
     std::fs::remove_file(&bad).ok();
 }
+
+#[test]
+fn the_command_writes_a_motor_file_and_a_plot() {
+    let out = tmp("cli.toml");
+    let svg = tmp("cli.svg");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pmsm"))
+        .args(["identify", "--motor"])
+        .arg(example("motor-b-linear.toml"))
+        .args([
+            "--vdc",
+            "540",
+            "--pwm-hz",
+            "14000",
+            "--dead-time-s",
+            "2e-6",
+            "--averaged",
+        ])
+        .arg("--output")
+        .arg(&out)
+        .arg("--plot")
+        .arg(&svg)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{stdout} {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        stdout.contains("rs_ohm") && stdout.contains('%'),
+        "{stdout}"
+    );
+    let m = motor_file::read(&out).unwrap().model.params;
+    assert!(rel(m.lq_h, 0.04017).abs() < 0.05, "{}", m.lq_h);
+    assert_eq!(m.rated_current_a, Some(2.53));
+    assert!(std::fs::metadata(&svg).unwrap().len() > 1000);
+    // A heavy rotor with too fast a spin: a typed failure naming the step, exit status 1.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pmsm"))
+        .args(["identify", "--motor"])
+        .arg(example("motor-a.toml"))
+        .args(["--vdc", "300", "--averaged", "--accel-rad-s2", "2000"])
+        .arg("--output")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("flux step"), "{stderr}");
+    std::fs::remove_file(&out).ok();
+    std::fs::remove_file(&svg).ok();
+}

@@ -39,6 +39,10 @@ pub struct Args {
         allow_negative_numbers = true
     )]
     pub theta_deg: f64,
+    /// Mechanical acceleration of the spin's ramps, rad/s² (lower it for a heavy rotor: the
+    /// field must not outrun it).
+    #[arg(long, value_name = "RAD_S2", default_value_t = 200.0)]
+    pub accel_rad_s2: f64,
     /// Use the averaged inverter model (faster) instead of the switching one.
     #[arg(long)]
     pub averaged: bool,
@@ -85,13 +89,27 @@ pub fn identify(
     current_limit_a: f64,
     theta_deg: f64,
 ) -> Result<Run> {
-    let config = IdentifyConfig::new(
-        truth.params.pole_pairs,
+    identify_with(
+        truth,
         inverter,
+        kind,
         current_limit_a,
+        theta_deg,
         IdentifyDesign::default(),
     )
-    .map_err(|e| anyhow!("identification: {e}"))?;
+}
+
+/// [`identify`] with a design of one's own.
+pub fn identify_with(
+    truth: &MotorModel,
+    inverter: &InverterParams,
+    kind: InverterKind,
+    current_limit_a: f64,
+    theta_deg: f64,
+    design: IdentifyDesign,
+) -> Result<Run> {
+    let config = IdentifyConfig::new(truth.params.pole_pairs, inverter, current_limit_a, design)
+        .map_err(|e| anyhow!("identification: {e}"))?;
     let motor = Motor::new(*truth, theta_deg.to_radians(), 0.0).map_err(|e| anyhow!("{e}"))?;
     let mut plant = Plant::new(
         motor,
@@ -201,7 +219,19 @@ pub fn run(args: &Args) -> Result<()> {
     } else {
         InverterKind::Switching
     };
-    let run = identify(&truth.model, &inverter, kind, limit, args.theta_deg)?;
+    let design = IdentifyDesign {
+        accel_m_rad_s2: args.accel_rad_s2,
+        ..IdentifyDesign::default()
+    };
+    let run = identify_with(&truth.model, &inverter, kind, limit, args.theta_deg, design).map_err(
+        |e| {
+            if format!("{e}").contains("flux step: the rotor moved") {
+                e.context("the rotor did not follow the spin: try a lower --accel-rad-s2")
+            } else {
+                e
+            }
+        },
+    )?;
     let mut m = run.identified.motor;
     m.rated_current_a = t.rated_current_a;
     m.rated_speed_rpm = t.rated_speed_rpm;
