@@ -28,8 +28,11 @@
 //! voltage and current over a window give one point of `v = R i + v_0`. The least-squares
 //! line through the four points gives `R` (the slope) and the inverter's distortion voltage
 //! `v_0` (the intercept: dead time and device drops, constant while no phase current changes
-//! sign; `(4/3) V_dead` for an ideal dead-time model). A current that drifts between the two
-//! halves of the window means the rotor was still moving ([`IdentifyError::RotorMoved`]).
+//! sign; `(4/3) V_dead` for an ideal dead-time model). The held β voltage is zero (at
+//! standstill that keeps `i_β = 0` by symmetry; what the loop held there only answered the
+//! rotor's motion). A current that drifts between the two halves of the window, or a mean
+//! `i_β`, means the rotor is still moving: the window is measured again, at most 16 times,
+//! then [`IdentifyError::RotorMoved`].
 //!
 //! # 2. Inductances
 //!
@@ -55,7 +58,10 @@
 //! mechanical speed limit), giving `ω_1`; windows at `ω_1`, `ω_1/2` and `ω_1` again give
 //! three points of that line, whose slope is `jψ_c` and intercept `v_off` (two speeds cancel
 //! the offset, and `R`'s error with it). Then `ψ_dq = R(δ) ψ_c` and
-//! `ψ_dq = (ψ + L_d I_f cos δ, L_q I_f sin δ)` give `δ` and `ψ` in closed form.
+//! `ψ_dq = (ψ + L_d I_f cos δ, L_q I_f sin δ)` give `δ` and `ψ` in closed form. Open-loop
+//! I–f barely damps the rotor's hunting; the field is slowed when the x voltage
+//! (`ω ψ sin δ`) rises above its slow mean, which adds damping `c cos δ · δ'` to
+//! `δ'' + (K/J) sin δ = 0`; each window's speed is the mean of the field's actual steps.
 //!
 //! # 4. Inertia and friction: the energy of the speed steps
 //!
