@@ -476,13 +476,16 @@ impl Identify {
         }
         let (vx, vy) = (v.d.to_bits() as i64, v.q.to_bits() as i64);
         let (ix, iy) = (ic.d.to_bits() as i64, ic.q.to_bits() as i64);
-        self.energy += (vx * ix + vy * iy) >> 24;
+        // Saturating: a healthy spin is far from the limits (see the module's formats).
+        let p = vx.saturating_mul(ix).saturating_add(vy.saturating_mul(iy)) >> 24;
+        self.energy = self.energy.saturating_add(p);
         let accel = c.accel_q16;
         let mut w_open = false;
         match seg {
             Seg::First => {
                 self.speed_q16 += accel;
-                if vx * vx + vy * vy >= self.spin_v2_bits || self.speed_q16 >= c.max_speed_q16 {
+                let v2 = vx.saturating_mul(vx).saturating_add(vy.saturating_mul(vy));
+                if v2 >= self.spin_v2_bits || self.speed_q16 >= c.max_speed_q16 {
                     self.omega1_q16 = self.speed_q16 & !1;
                     self.omega2_q16 = self.omega1_q16 / 2;
                     self.speed_q16 = self.omega1_q16;
@@ -503,7 +506,7 @@ impl Identify {
                         w.v[1] += vy;
                         w.i[0] += ix;
                         w.i[1] += iy;
-                        w.c_sum += e;
+                        w.c_sum = w.c_sum.saturating_add(e);
                         w.c_end = e;
                         w.n += 1;
                     }
@@ -549,16 +552,16 @@ impl Identify {
         // (`δ'' + c cos δ δ' + (K/J) sin δ = 0`), which open-loop I–f otherwise lacks.
         self.vx_mean += vx - (self.vx_mean >> 12);
         let dv = vx - (self.vx_mean >> 12);
-        let corr = (c.damp_q24 * dv) >> 24;
-        let step = (self.speed_q16 as i64 - corr).max(0) as u64;
+        let corr = c.damp_q24.saturating_mul(dv) >> 24;
+        let step = (self.speed_q16 as i64).saturating_sub(corr).max(0) as u64;
         // Output at the middle of the coming period's angle (the vector turns during it).
-        let out_angle = Angle(((self.phase_q16 + step / 2) >> 16) as u32 as i32);
+        let out_angle = Angle((self.phase_q16.wrapping_add(step / 2) >> 16) as u32 as i32);
         self.phase_q16 = self.phase_q16.wrapping_add(step);
         if let Seg::Hold(h) = seg
             && w_open
             && let Some(w) = self.windows.get_mut(h as usize)
         {
-            w.speed_sum += step;
+            w.speed_sum = w.speed_sum.saturating_add(step);
             w.speed_n += 1;
         }
         Ok((
