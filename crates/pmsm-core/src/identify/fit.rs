@@ -2,7 +2,7 @@
 //! that turn the per-sample sums into parameters. Runs in [`super::Identify::poll`], never on
 //! the per-sample path.
 
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 /// Least squares `y ≈ a x + b` over the points; `None` with fewer than two distinct `x`.
 /// Returns `(a, b, rms residual)`.
@@ -32,6 +32,28 @@ pub fn line(points: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
         .sum();
     let rms = libm::sqrt(ss / n as f64);
     (k.is_finite() && b.is_finite()).then_some((k, b, rms))
+}
+
+/// Least squares `a·x ≈ y` for three unknowns over the rows `(a, y)`, columns scaled to unit
+/// norm first (the unknowns differ by orders of magnitude). `None` if singular.
+pub fn least_squares_3(rows: &[([f64; 3], f64)]) -> Option<[f64; 3]> {
+    let mut norm = [0.0f64; 3];
+    for (a, _) in rows {
+        for (n, x) in norm.iter_mut().zip(a) {
+            *n += x * x;
+        }
+    }
+    let norm = norm.map(|n| if n > 0.0 { libm::sqrt(n) } else { 1.0 });
+    let mut ata = Matrix3::<f64>::zeros();
+    let mut aty = Vector3::<f64>::zeros();
+    for (a, y) in rows {
+        let v = Vector3::new(a[0] / norm[0], a[1] / norm[1], a[2] / norm[2]);
+        ata += v * v.transpose();
+        aty += v * *y;
+    }
+    let x = ata.try_inverse()? * aty;
+    let out = [x.x / norm[0], x.y / norm[1], x.z / norm[2]];
+    out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
 /// Inductance from the peak-to-peak `d_a` (A) of the current under a square wave of
@@ -70,6 +92,24 @@ mod tests {
         assert!((a - 2.0).abs() < 1e-12 && (b - 1.1).abs() < 1e-12 && rms < 1e-12);
         assert!(line(&pts[..1]).is_none());
         assert!(line(&[(1.0, 1.0), (1.0, 2.0)]).is_none());
+    }
+
+    #[test]
+    fn least_squares_3_recovers_scaled_unknowns() {
+        let x = [3e-3, 5e-4, 20.0];
+        let rows: [[f64; 3]; 5] = [
+            [9000.0, 700.0, 0.9],
+            [-9000.0, 1400.0, 0.9],
+            [0.0, 19000.0, 1.0],
+            [0.0, 4800.0, 1.0],
+            [0.0, 19500.0, 1.0],
+        ];
+        let rows = rows.map(|a| (a, a[0] * x[0] + a[1] * x[1] + a[2] * x[2]));
+        let got = least_squares_3(&rows).unwrap();
+        for (g, w) in got.iter().zip(x) {
+            assert!((g / w - 1.0).abs() < 1e-9, "{got:?}");
+        }
+        assert!(least_squares_3(&rows[2..3]).is_none());
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! The identification's state machine: integer per-sample step, `f64` poll.
 
-use super::fit::{inductance_from_ripple, line, magnet_flux};
+use super::fit::{inductance_from_ripple, least_squares_3, line, magnet_flux};
 use super::{Identified, IdentifyConfig, IdentifyError, Stage};
 use crate::angle::Angle;
 use crate::frames::{AlphaBeta, Dq, inverse_clarke, inverse_park, park};
@@ -48,14 +48,20 @@ struct BurstSums {
 struct WindowSums {
     v: [i64; 2],
     i: [i64; 2],
-    /// Σ of the energy `C` over the window, and `C` at its ends.
+    /// Σ of the energy `C` over the window.
     c_sum: i64,
-    c_start: i64,
-    c_end: i64,
+    /// Σ of `C` over the first and the second half of the window (their difference over
+    /// the half length squared is the mean power, with the hunting averaged out at both ends).
+    c_first: i64,
+    c_second: i64,
     n: u32,
     /// Σ of the field's actual step (commanded speed with the damper's correction).
     speed_sum: u64,
     speed_n: u32,
+    /// Σ over the window of `F`, the running Σ of the squared field step, and of the spin's
+    /// sample index.
+    f_sum: i128,
+    t_sum: i64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -110,6 +116,9 @@ pub struct Identify {
     omega1_q16: u64,
     omega2_q16: u64,
     energy: i64,
+    /// Running Σ of the squared field step (angle counts per sample)² over the spin.
+    f_energy: i128,
+    spin_n: i64,
     retries: u32,
     /// Slow mean of the spin's x voltage (`Pu` bits × 2¹²), for the hunting damper.
     vx_mean: i64,
@@ -160,6 +169,8 @@ impl Identify {
             omega1_q16: 0,
             omega2_q16: 0,
             energy: 0,
+            f_energy: 0,
+            spin_n: 0,
             retries: 0,
             vx_mean: 0,
             r_ohm: 0.0,
@@ -499,15 +510,17 @@ impl Identify {
                 if k >= c.n_settle {
                     let e = self.energy;
                     if let Some(w) = self.windows.get_mut(h as usize) {
-                        if w.n == 0 {
-                            w.c_start = e;
-                        }
                         w.v[0] += vx;
                         w.v[1] += vy;
                         w.i[0] += ix;
                         w.i[1] += iy;
                         w.c_sum = w.c_sum.saturating_add(e);
-                        w.c_end = e;
+                        let (j, half) = (k - c.n_settle, c.n_window / 2);
+                        if j < half {
+                            w.c_first = w.c_first.saturating_add(e);
+                        } else if j < 2 * half {
+                            w.c_second = w.c_second.saturating_add(e);
+                        }
                         w.n += 1;
                     }
                     if k + 1 >= c.n_settle + c.n_window {
@@ -557,12 +570,17 @@ impl Identify {
         // Output at the middle of the coming period's angle (the vector turns during it).
         let out_angle = Angle((self.phase_q16.wrapping_add(step / 2) >> 16) as u32 as i32);
         self.phase_q16 = self.phase_q16.wrapping_add(step);
+        let counts = (step >> 16) as i128;
+        self.f_energy = self.f_energy.saturating_add(counts * counts);
+        self.spin_n += 1;
         if let Seg::Hold(h) = seg
             && w_open
             && let Some(w) = self.windows.get_mut(h as usize)
         {
             w.speed_sum = w.speed_sum.saturating_add(step);
             w.speed_n += 1;
+            w.f_sum = w.f_sum.saturating_add(self.f_energy);
+            w.t_sum = w.t_sum.saturating_add(self.spin_n);
         }
         Ok((
             AlphaBeta {
@@ -702,6 +720,12 @@ impl Identify {
         if psi.is_nan() || psi <= 0.0 || !psi.is_finite() {
             return Err(IdentifyError::Noise(Stage::Flux));
         }
+        // A rotor that did not turn leaves only the inductive voltage: no EMF worth the name
+        // (below 5 % of the voltage the first ramp aimed at).
+        let w_top = ux.iter().fold(0.0f64, |m, x| m.max(x.0));
+        if psi * w_top < 0.05 * c.design.spin_voltage_pu * c.voltage_base_v {
+            return Err(IdentifyError::RotorMoved(Stage::Flux));
+        }
         // Each window on its own (offset from the fit) must agree: a rotor that slipped
         // out of the rotating field shows a much smaller flux at one speed.
         for (x, y) in ux.iter().zip(uy.iter()) {
@@ -717,20 +741,39 @@ impl Identify {
         let joules = 1.5 * c.voltage_base_v * c.current_base_a * c.sample_s / Q24 as f64;
         let cbar = |s: &WindowSums| s.c_sum as f64 / s.n.max(1) as f64 * joules;
         let power = |s: &WindowSums| {
-            (s.c_end - s.c_start) as f64 / (s.n.max(2) - 1) as f64 * joules / c.sample_s
+            let half = (c.n_window / 2).max(1) as f64;
+            (s.c_second - s.c_first) as f64 / (half * half) * joules / c.sample_s
         };
+        // J, B and the losses from the energy between the windows' centres and the windows'
+        // mean powers: E = J ΔK + B ΔF + P_loss Δt, P = B ω_m² + P_loss (least squares).
+        let rad = core::f64::consts::TAU / 4_294_967_296.0 / c.sample_s / p;
+        let f_bar =
+            |s: &WindowSums| s.f_sum as f64 / s.speed_n.max(1) as f64 * rad * rad * c.sample_s;
+        let t_bar = |s: &WindowSums| s.t_sum as f64 / s.speed_n.max(1) as f64 * c.sample_s;
+        let wm = |s: &WindowSums| speed(s) / p;
+        let kin = |s: &WindowSums| 0.5 * wm(s) * wm(s);
         let [h1a, h2, h1b] = w;
-        let w1 = 0.5 * (speed(&h1a) + speed(&h1b)) / p;
-        let w2 = speed(&h2) / p;
-        let dw2 = w1 * w1 - w2 * w2;
-        if dw2.is_nan() || dw2 <= 0.0 {
+        let w1 = 0.5 * (wm(&h1a) + wm(&h1b));
+        let w2 = wm(&h2);
+        if w1.is_nan() || w1 <= w2 {
             return Err(IdentifyError::Noise(Stage::Inertia));
         }
-        let b = ((0.5 * (power(&h1a) + power(&h1b)) - power(&h2)) / dw2).max(0.0);
-        let e_down = cbar(&h2) - cbar(&h1a);
-        let e_up = cbar(&h1b) - cbar(&h2);
-        let s_settle = c.n_settle as f64 * c.sample_s;
-        let j = (e_up - e_down - b * s_settle * dw2) / dw2;
+        let step_row = |a: &WindowSums, b: &WindowSums| {
+            (
+                [kin(b) - kin(a), f_bar(b) - f_bar(a), t_bar(b) - t_bar(a)],
+                cbar(b) - cbar(a),
+            )
+        };
+        let power_row = |s: &WindowSums| ([0.0, wm(s) * wm(s), 1.0], power(s));
+        let rows = [
+            step_row(&h1a, &h2),
+            step_row(&h2, &h1b),
+            power_row(&h1a),
+            power_row(&h2),
+            power_row(&h1b),
+        ];
+        let [j, b, _loss] = least_squares_3(&rows).ok_or(IdentifyError::Noise(Stage::Inertia))?;
+        let b = b.max(0.0);
         if j.is_nan() || j <= 0.0 || !j.is_finite() {
             return Err(IdentifyError::Noise(Stage::Inertia));
         }

@@ -92,7 +92,7 @@ mod machine;
 #[cfg(test)]
 mod tests;
 
-pub use fit::{inductance_from_ripple, line, magnet_flux};
+pub use fit::{inductance_from_ripple, least_squares_3, line, magnet_flux};
 pub use machine::{Identify, IdentifyOutput};
 
 use crate::error::ConfigError;
