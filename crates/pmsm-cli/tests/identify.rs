@@ -15,7 +15,7 @@ struct Case {
     m: (u32, f64, f64, f64, f64, f64, f64, f64),
 }
 
-const CASES: [Case; 9] = [
+const CASES: [Case; 10] = [
     Case {
         name: "12 V gimbal, surface, p=7",
         vdc_v: 12.0,
@@ -69,6 +69,13 @@ const CASES: [Case; 9] = [
         vdc_v: 540.0,
         dead_time_s: 2e-6,
         m: (6, 0.6, 5e-3, 12e-3, 0.15, 4e-3, 8e-4, 10.0),
+    },
+    // A mechanical time constant J/B of 0.6 s: friction is a large part of the spin's power.
+    Case {
+        name: "400 V fan, surface, p=3, friction",
+        vdc_v: 400.0,
+        dead_time_s: 1.5e-6,
+        m: (3, 2.5, 15e-3, 15e-3, 0.25, 3e-3, 5e-3, 3.0),
     },
 ];
 

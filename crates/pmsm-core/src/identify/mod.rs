@@ -66,13 +66,15 @@
 //! # 4. Inertia and friction: the energy of the speed steps
 //!
 //! The electrical power `P = 1.5 v·i` (commanded voltage, measured current) is summed into an
-//! energy `C(t)`. The rotor's kinetic energy rises by `½ J (ω_1,m² − ω_2,m²)` on the way
-//! up and falls by as much on the way down, while the losses (copper, inverter, the same
-//! current amplitude throughout) and the friction are nearly the same both ways. So with
-//! `C̄` the mean of `C` over each window (which averages the hunting out),
-//! `E_up − E_down = J (ω_1,m² − ω_2,m²) + B S (ω_1,m² − ω_2,m²)`, `S` the settling time
-//! that makes the two paths differ, and `B` comes from the difference of the mean powers in
-//! the windows at `ω_1` and `ω_2`: `P_1 − P_2 = B (ω_1,m² − ω_2,m²)`.
+//! energy `C(t)`, and the squared field speed into `F(t) = Σ ω_m² T`. With `C̄`, `F̄`, `t̄`
+//! their means over each window (which average the hunting out), `K = ½ ω_m²` and `P̄` a
+//! window's mean power, `C̄_b − C̄_a = J ΔK + B ΔF̄ + P_loss Δt̄` for the two speed steps and
+//! `P̄ = B ω_m² + P_loss` for the three windows: five equations in `(J, B, P_loss)`, solved
+//! by least squares. The up- and the down-step change the kinetic energy by opposite amounts
+//! at nearly equal friction and losses (copper, inverter: the same current amplitude
+//! throughout), which is what makes `J` well conditioned; no load angle is needed, since the
+//! air-gap power `1.5 (v − R i)·i = T ω_m` holds for any motor. `B` rests on differences of
+//! mean powers and is a coarse figure.
 //!
 //! # Faults
 //!
