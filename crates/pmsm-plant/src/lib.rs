@@ -27,6 +27,7 @@
 //! - [`sensor`]: the phase-current ADC (quantisation, offset, gain error, noise), sampled at the
 //!   PWM centre; [`noise`]: its deterministic random numbers.
 //! - [`plant`]: all of it stepped one PWM period at a time.
+//! - [`thermal`]: piecewise-linear drift of the true resistance and magnet flux over time.
 //!
 //! # Example
 //!

@@ -19,8 +19,8 @@ pub struct IdentifyOutput {
     pub pwm_on: bool,
     /// The stage running (or that ran last).
     pub stage: Stage,
-    /// The commanded electrical speed of the spin, per unit of one turn per sample × 2⁻¹⁶
-    /// (0 outside it); [`Identify::speed_rad_s`] converts.
+    /// The commanded electrical speed of the spin, angle counts (2³² a turn) per sample
+    /// × 2¹⁶ (0 outside it); [`Identify::speed_rad_s`] converts.
     pub speed_q16: u64,
     /// The sequence has ended; [`Identify::poll`] gives the result.
     pub finished: bool,

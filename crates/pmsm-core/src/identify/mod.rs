@@ -86,8 +86,9 @@
 //!
 //! Currents per unit of the current limit and voltages per unit of `V_DC/√3`, [`Pu`](crate::num::Pu) Q8.24;
 //! sums `i64` of `Pu` bits (at most 2²⁴ · 2 per sample, 2¹⁸ samples a window: 2⁴³); the
-//! energy `C` sums `v·i` products in `Pu` bits (below 2⁴⁰ for ten minutes at 20 kHz); the
-//! angle generator is a `u64` phase in 2⁻¹⁶ angle counts.
+//! energy `C` sums `v·i` products in `Pu` bits (below 2⁴⁰ for ten minutes at 20 kHz), the
+//! squared field speed `F` and its window sums are `i128`; every sum saturates. The angle
+//! generator is a `u64` phase in 2⁻¹⁶ angle counts.
 
 mod fit;
 mod machine;
