@@ -43,6 +43,9 @@ pub struct Args {
     /// field must not outrun it).
     #[arg(long, value_name = "RAD_S2", default_value_t = 200.0)]
     pub accel_rad_s2: f64,
+    /// White noise on each phase-current reading, A RMS.
+    #[arg(long, value_name = "A", default_value_t = 0.0)]
+    pub adc_noise_a: f64,
     /// Use the averaged inverter model (faster) instead of the switching one.
     #[arg(long)]
     pub averaged: bool,
@@ -93,17 +96,19 @@ pub fn identify(
         truth,
         inverter,
         kind,
+        AdcParams::from_inverter(inverter),
         current_limit_a,
         theta_deg,
         IdentifyDesign::default(),
     )
 }
 
-/// [`identify`] with a design of one's own.
+/// [`identify`] with an ADC (noise, offsets) and a design of one's own.
 pub fn identify_with(
     truth: &MotorModel,
     inverter: &InverterParams,
     kind: InverterKind,
+    adc: AdcParams,
     current_limit_a: f64,
     theta_deg: f64,
     design: IdentifyDesign,
@@ -111,12 +116,8 @@ pub fn identify_with(
     let config = IdentifyConfig::new(truth.params.pole_pairs, inverter, current_limit_a, design)
         .map_err(|e| anyhow!("identification: {e}"))?;
     let motor = Motor::new(*truth, theta_deg.to_radians(), 0.0).map_err(|e| anyhow!("{e}"))?;
-    let mut plant = Plant::new(
-        motor,
-        InverterModel::new(*inverter, kind),
-        AdcParams::from_inverter(inverter),
-    )
-    .map_err(|e| anyhow!("{e}"))?;
+    let mut plant =
+        Plant::new(motor, InverterModel::new(*inverter, kind), adc).map_err(|e| anyhow!("{e}"))?;
     let mut id = Identify::new(config);
     let i_b = config.current_base_a;
     let v_b = config.voltage_base_v;
@@ -223,15 +224,25 @@ pub fn run(args: &Args) -> Result<()> {
         accel_m_rad_s2: args.accel_rad_s2,
         ..IdentifyDesign::default()
     };
-    let run = identify_with(&truth.model, &inverter, kind, limit, args.theta_deg, design).map_err(
-        |e| {
-            if format!("{e}").contains("flux step: the rotor moved") {
-                e.context("the rotor did not follow the spin: try a lower --accel-rad-s2")
-            } else {
-                e
-            }
-        },
-    )?;
+    let mut adc = AdcParams::from_inverter(&inverter);
+    adc.noise_rms_a = args.adc_noise_a;
+    adc.validate().map_err(|e| anyhow!("--adc-noise-a: {e}"))?;
+    let run = identify_with(
+        &truth.model,
+        &inverter,
+        kind,
+        adc,
+        limit,
+        args.theta_deg,
+        design,
+    )
+    .map_err(|e| {
+        if format!("{e}").contains("flux step: the rotor moved") {
+            e.context("the rotor did not follow the spin: try a lower --accel-rad-s2")
+        } else {
+            e
+        }
+    })?;
     let mut m = run.identified.motor;
     m.rated_current_a = t.rated_current_a;
     m.rated_speed_rpm = t.rated_speed_rpm;
