@@ -5,4 +5,5 @@ pub mod commands;
 pub mod csv_io;
 pub mod motor_file;
 pub mod plot;
+pub mod scenario_extras;
 pub mod scenario_file;

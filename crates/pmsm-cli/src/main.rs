@@ -26,6 +26,8 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Detect the initial rotor position against the plant, at one angle or a sweep.
     Ipd(commands::ipd::Args),
+    /// Identify R, L_d, L_q, ψ, J and B against the plant of a true motor file.
+    Identify(commands::identify::Args),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +53,7 @@ fn main() -> ExitCode {
         Command::Observe(args) => commands::observe::run(&args),
         Command::Simulate(args) => commands::simulate::run(&args),
         Command::Ipd(args) => commands::ipd::run(&args),
+        Command::Identify(args) => commands::identify::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -61,6 +61,7 @@
 //!   and speed loops ([`CurrentController`], [`SpeedController`], [`Pi`]), dead-time
 //!   compensation ([`DeadTimeConfig`]), space-vector modulation ([`SvpwmConfig`]) and the
 //!   initial position detection ([`Ipd`]);
+//! - self-commissioning ([`Identify`]): R, L_d, L_q, ψ, J and B measured at start-up;
 //! - the fault recorder ([`FaultRecorder`]): the last samples before a fault, per unit, for a
 //!   replay on the host;
 //! - numbers: [`Pu`], [`Unit`], [`Angle`], [`polar`] (CORDIC), and the per-unit bases
@@ -90,6 +91,7 @@ mod error;
 pub mod fixtures;
 mod frames;
 mod hal;
+mod identify;
 mod ipd;
 mod num;
 mod observer;
@@ -113,6 +115,9 @@ pub use drive::{
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};
 pub use hal::{DutyCyclePwm, PhaseCurrentSampler, PwmErrors, ThreePhasePwm, apply, control_step};
+pub use identify::{
+    Identified, Identify, IdentifyConfig, IdentifyDesign, IdentifyError, IdentifyOutput, Stage,
+};
 pub use ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdOutput, IpdResult};
 pub use num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64};
 pub use observer::direction::{

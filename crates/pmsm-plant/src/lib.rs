@@ -27,6 +27,7 @@
 //! - [`sensor`]: the phase-current ADC (quantisation, offset, gain error, noise), sampled at the
 //!   PWM centre; [`noise`]: its deterministic random numbers.
 //! - [`plant`]: all of it stepped one PWM period at a time.
+//! - [`thermal`]: piecewise-linear drift of the true resistance and magnet flux over time.
 //!
 //! # Example
 //!
@@ -69,12 +70,14 @@ pub mod noise;
 pub mod plant;
 pub mod saturation;
 pub mod sensor;
+pub mod thermal;
 
 pub use inverter::{Inverter, InverterKind, InverterModel};
 pub use motor::{Mechanics, Motor, MotorModel, MotorState};
 pub use plant::{Injected, Plant, Sample};
 pub use saturation::Saturation;
 pub use sensor::{AdcParams, CurrentSensor};
+pub use thermal::Thermal;
 
 /// Why a plant operation was refused. The model's state is left as it was before the call.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -295,6 +295,21 @@ impl Motor {
         self.c.dq
     }
 
+    /// Scales the model's resistance by `rs_factor` and its magnet flux (and torque constant)
+    /// by `flux_factor`, both in `[0.2, 5]`, from the next step on; the state is kept.
+    pub fn set_factors(&mut self, rs_factor: f64, flux_factor: f64) -> Result<(), PlantError> {
+        let mut m = self.model;
+        m.params.rs_ohm *= in_range("rs_factor", rs_factor, 0.2, 5.0)?;
+        m.params.flux_wb *= in_range("flux_factor", flux_factor, 0.2, 5.0)?;
+        m.params.kt_nm_per_a *= flux_factor;
+        m.validate()?;
+        let dq = self.c.dq;
+        self.c = Coeffs::new(&m);
+        // The state's frame was chosen at construction.
+        self.c.dq = dq;
+        Ok(())
+    }
+
     /// Present mechanics.
     pub fn mechanics(&self) -> Mechanics {
         self.mech

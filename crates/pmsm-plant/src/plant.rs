@@ -105,6 +105,16 @@ impl Plant {
         self.motor.set_mechanics(mechanics)
     }
 
+    /// Scales the motor's true resistance and magnet flux (thermal drift,
+    /// [`crate::thermal`]); see [`Motor::set_factors`].
+    pub fn set_thermal_factors(
+        &mut self,
+        rs_factor: f64,
+        flux_factor: f64,
+    ) -> Result<(), PlantError> {
+        self.motor.set_factors(rs_factor, flux_factor)
+    }
+
     /// DC bus voltage, V.
     pub fn vdc_v(&self) -> f64 {
         self.vdc_v

@@ -31,7 +31,7 @@ pub enum Startup {
 }
 
 /// `[control]` of a scenario.
-#[derive(Clone, Copy, Debug, Deserialize)]
+#[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Control {
     /// Control sample rate, Hz (default: the PWM frequency).
@@ -63,6 +63,8 @@ pub struct Control {
     /// Trip on loss of lock when the estimator's filtered health figure exceeds this, per unit
     /// (`Protection::health_limit_pu`; default: report only).
     pub health_limit_pu: Option<f64>,
+    /// Motor file the drive is designed from (`scenario_extras`); the plant keeps `motor`.
+    pub model_motor: Option<String>,
 }
 
 impl Control {

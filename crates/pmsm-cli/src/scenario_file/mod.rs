@@ -87,6 +87,10 @@ pub struct Scenario {
     pub sensing: Sensing,
     /// `[faults]`: faults injected into the plant.
     pub faults: Faults,
+    /// `[thermal]`: drift of the plant's true R and ψ (`scenario_extras`).
+    pub thermal: Option<pmsm_plant::Thermal>,
+    /// The drive's motor from `control.model_motor` (`scenario_extras`).
+    pub model_motor: Option<Motor>,
 }
 
 #[derive(Deserialize)]
@@ -104,6 +108,7 @@ struct RawScenario {
     sensing: Sensing,
     #[serde(default)]
     faults: Faults,
+    thermal: Option<crate::scenario_extras::RawThermal>,
 }
 
 /// Reads and validates a scenario file.
@@ -138,6 +143,8 @@ pub fn read(path: &Path) -> Result<Scenario> {
         duration_s: raw.duration_s,
         motor,
         inverter: raw.inverter,
+        thermal: crate::scenario_extras::thermal(raw.thermal.as_ref(), &shown.to_string())?,
+        model_motor: crate::scenario_extras::model_motor(raw.control.model_motor.as_deref(), path)?,
         control: raw.control,
         theta0_rad: raw.initial.theta_e_deg.to_radians(),
         omega_m0_rad_s: raw.initial.speed_rpm * std::f64::consts::TAU / 60.0,

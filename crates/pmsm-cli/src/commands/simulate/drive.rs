@@ -59,11 +59,11 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
     })
 }
 
-/// The motor as the drive believes it to be: the scenario's, scaled by the `model_*_factor`s
-/// of `[control]`.
+/// The motor as the drive believes it to be: `control.model_motor` if given, else the
+/// scenario's, scaled by the `model_*_factor`s of `[control]`.
 fn drive_model(sc: &Scenario) -> MotorParams {
     let c = &sc.control;
-    let mut model = sc.motor.model.params;
+    let mut model = sc.model_motor.as_ref().unwrap_or(&sc.motor).model.params;
     model.rs_ohm *= c.model_rs_factor.unwrap_or(1.0);
     model.ld_h *= c.model_l_factor.unwrap_or(1.0);
     model.lq_h *= c.model_l_factor.unwrap_or(1.0);

@@ -119,6 +119,10 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         injector
             .apply(t, &mut plant, sensed.codes)
             .map_err(|e| anyhow!("{shown}: t = {t:.6} s: {e}"))?;
+        if let Some(th) = &sc.thermal {
+            th.apply(&mut plant)
+                .map_err(|e| anyhow!("{shown}: thermal: {e}"))?;
+        }
         let load_nm = sc.load.at(t);
         advance_plant(&mut plant, &out, load_nm, setup.pwm_per_sample, &mut sensed)
             .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
