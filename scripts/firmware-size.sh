@@ -2,7 +2,7 @@
 # Builds the B-G431B-ESC1 firmware (examples/b-g431b-esc1, release, thumbv7em-none-eabihf),
 # prints its flash and static RAM, and fails (exit 1) if
 #   - flash (text + data) exceeds 64 KiB or static RAM (data + bss, .uninit included)
-#     exceeds 16 KiB (issue 5's limits), or
+#     exceeds 16 KiB, or
 #   - text, data or bss differ from the checked-in snapshot
 #     examples/b-g431b-esc1/size-snapshot.txt by more than SIZE_TOLERANCE_PCT (default 5) %
 #     (a section under 1 KiB may move by up to 64 bytes).

@@ -1,4 +1,4 @@
-//! Dead-time compensation (seed 001 eq. 7–9; equations.md §2.3, §4.5) against its f64
+//! Dead-time compensation (Khlaief, Boussak, Gossa (2012) eq. 7–9; docs/khlaief2012.md §4) against its f64
 //! reference and against the plant's inverter model.
 
 use pmsm_core::AlphaBeta;

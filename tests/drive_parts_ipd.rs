@@ -1,4 +1,4 @@
-//! Initial position detection (seed 001 §4; equations.md §4.2) against the plant: motor,
+//! Initial position detection (Khlaief, Boussak, Gossa (2012) §4; docs/khlaief2012.md §3) against the plant: motor,
 //! switching inverter with dead time, 12-bit current ADC, default d-axis saturation.
 
 use pmsm_core::AlphaBeta;
@@ -121,7 +121,7 @@ fn motor_b_sweep_at_pwm_rate() {
     let (worst, _, i_max) = sweep(motor_b(), inverter_b(), Mechanics::Locked, 1);
     println!("motor B, 14 kHz control: worst {worst:.2}°, peak current {i_max:.2} A");
     assert!(worst <= 15.0, "{worst}°");
-    // Long pulses about twice the rated peak (3.58 A), as in seed 001.
+    // Long pulses about twice the rated peak (3.58 A), as in Khlaief, Boussak, Gossa (2012).
     assert!((6.0..9.0).contains(&i_max), "{i_max} A");
 }
 
@@ -182,7 +182,7 @@ fn surface_motor_is_a_named_fault() {
 }
 
 /// The pulse lengths follow the documented rule (f64 reference): on motor B 3 and 10 samples
-/// at 14 kHz (seed 001: 200 µs and 700 µs).
+/// at 14 kHz (Khlaief, Boussak, Gossa (2012): 200 µs and 700 µs).
 #[test]
 fn pulse_lengths_follow_the_rule() {
     for (m, inv) in [(motor_b(), inverter_b()), (small_motor(), small_inverter())] {

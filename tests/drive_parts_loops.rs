@@ -1,5 +1,5 @@
-//! The PI, the dq current controllers and the IP speed controller (equations.md §4.4) against
-//! f64 and against the plant: motor B of seed 001 with ideal voltages (the command is applied
+//! The PI, the dq current controllers and the IP speed controller (docs/khlaief2012.md §6–7) against
+//! f64 and against the plant: motor B of Khlaief, Boussak, Gossa (2012) with ideal voltages (the command is applied
 //! as is, held over the sample), true angle and speed.
 
 use pmsm_core::Dq;
@@ -469,7 +469,7 @@ impl SpeedRun {
     }
 }
 
-/// IP speed steps on motor B (seed 001 §7: no overshoot, i_d held at 0).
+/// IP speed steps on motor B (Khlaief, Boussak, Gossa (2012) §7: no overshoot, i_d held at 0).
 ///
 /// - 0 → 100 r/min (linear): 10–90 % rise time of the critically damped loop, 3.36/ω_n =
 ///   48 ms at the default ω_n = 70 rad/s, within ±20 % (measured 46.7 ms); overshoot ≤ 2 %

@@ -1,7 +1,7 @@
-//! Current-model MRAS (seed 001 eq. 14–23, equations.md §4.1) against the plant and against
+//! Current-model MRAS (Khlaief, Boussak, Gossa (2012) eq. 14–23, docs/khlaief2012.md §2) against the plant and against
 //! its f64 reference.
 //!
-//! The estimator runs open loop: motor B of seed 001 is driven at constant speed by an f64
+//! The estimator runs open loop: motor B of Khlaief, Boussak, Gossa (2012) is driven at constant speed by an f64
 //! field-oriented current controller that uses the true angle (`FocRef`), with ideal voltages
 //! held over each 1/14 kHz sample, and its currents are read through the plant's 12-bit ADC
 //! model (±10 A). The fixed-point estimator and the f64 reference see the same samples.
@@ -114,7 +114,7 @@ fn run(rpm: f64, iq_a: f64, err0_deg: f64, secs: f64, tail_s: f64) -> Errors {
     e
 }
 
-/// 800 r/min with rated load (seed 001 Fig. 6), from 20° behind and 20° ahead.
+/// 800 r/min with rated load (Khlaief, Boussak, Gossa (2012) Fig. 6), from 20° behind and 20° ahead.
 ///
 /// Measured (default gains, ω_n = 280 rad/s): below 2° after 0.019 s; over the last 0.5 s
 /// |θ̂ − θ| ≤ 0.0018°, mean −0.0003°; |ω̂ − ω| ≤ 0.22 rad/s (ADC quantisation through K_p),

@@ -1,4 +1,4 @@
-//! SVPWM (equations.md §4.3) against its f64 reference: the average voltages rebuilt from the
+//! SVPWM (docs/khlaief2012.md §5) against its f64 reference: the average voltages rebuilt from the
 //! fixed-point duties, the circle limit, and the 15.5 % more voltage than sine PWM.
 
 use pmsm_core::AlphaBeta;

@@ -134,7 +134,7 @@ fn servo_motor_fixed_point_matches_f64() {
     }
 }
 
-/// The AO reproduces seed 000 eq. 13–14 on the servo motor with g T_s = 0.25 (the issue's
+/// The AO reproduces Solsona, Valla, Muravchik (2000) eq. 13–14 on the servo motor with g T_s = 0.25 (the required
 /// bounds: 3 % of the angle error, 8 % of the speed error).
 #[test]
 fn servo_ao_matches_eq_13_14_at_large_g_ts() {

@@ -1,4 +1,4 @@
-//! Float64 references of the fixed-point drive blocks of `pmsm-core` (seed 001, equations.md §4):
+//! Float64 references of the fixed-point drive blocks of `pmsm-core` (Khlaief, Boussak, Gossa (2012), docs/khlaief2012.md):
 //! the current-model MRAS, the PI and IP loops, SVPWM, dead-time compensation and the
 //! initial-position arithmetic. Each is written from the equations, in SI units, as plainly as
 //! possible, so that a test can bound the fixed-point result against it.
@@ -10,7 +10,7 @@ use pmsm_core::MotorParams;
 /// `√3`.
 pub const SQRT3: f64 = 1.732_050_807_568_877_2;
 
-/// Park transform of `[α, β]` at `theta` (equations.md §1).
+/// Park transform of `[α, β]` at `theta` (docs/algorithms.md (conventions)).
 pub fn park(ab: [f64; 2], theta: f64) -> [f64; 2] {
     let (s, c) = theta.sin_cos();
     [ab[0] * c + ab[1] * s, -ab[0] * s + ab[1] * c]
@@ -28,7 +28,7 @@ pub fn wrap(x: f64) -> f64 {
 }
 
 // ---------------------------------------------------------------------------------------------
-// MRAS current-model estimator (seed 001 eq. 14–23, equations.md §4.1)
+// MRAS current-model estimator (Khlaief, Boussak, Gossa (2012) eq. 14–23, docs/khlaief2012.md §2)
 // ---------------------------------------------------------------------------------------------
 
 /// Float64 current-model MRAS, SI units (A, V, rad, rad/s), with the same discretisation as
@@ -145,7 +145,7 @@ impl MrasRef {
         self.theta = th1;
         let i = park(i_ab, th1);
         let (ed, eq) = (i[0] - self.i_hat[0], i[1] - self.i_hat[1]);
-        // Seed 001 eq. 22 (equations.md §4.1).
+        // Khlaief, Boussak, Gossa (2012) eq. 22 (docs/khlaief2012.md §2).
         let xi = (self.lq / self.ld) * i[1] * ed
             - (self.ld / self.lq) * i[0] * eq
             - (self.psi / self.lq) * eq;
@@ -162,7 +162,7 @@ impl MrasRef {
 }
 
 // ---------------------------------------------------------------------------------------------
-// PI, current loops, IP speed loop (equations.md §4.4)
+// PI, current loops, IP speed loop (docs/khlaief2012.md §6–7)
 // ---------------------------------------------------------------------------------------------
 
 /// Float64 PI with output clamp and anti-windup, the algorithm of `pmsm_core::Pi`:
@@ -282,7 +282,7 @@ pub fn rpm_to_omega_e(rpm: f64, p: u32) -> f64 {
 }
 
 // ---------------------------------------------------------------------------------------------
-// SVPWM (equations.md §4.3)
+// SVPWM (docs/khlaief2012.md §5)
 // ---------------------------------------------------------------------------------------------
 
 /// Float64 SVPWM by min–max injection: `v` (V or pu) on bus `vdc` (same unit) with margin `m`.
@@ -309,10 +309,10 @@ pub fn duties_to_alpha_beta(d: [f64; 3], vdc: f64) -> [f64; 2] {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Dead-time compensation (seed 001 eq. 7–9, equations.md §2.3, §4.5)
+// Dead-time compensation (Khlaief, Boussak, Gossa (2012) eq. 7–9, docs/khlaief2012.md §4)
 // ---------------------------------------------------------------------------------------------
 
-/// Float64 dead-time voltage (seed 001 eq. 8), V.
+/// Float64 dead-time voltage (Khlaief, Boussak, Gossa (2012) eq. 8), V.
 pub fn v_dead_ref(
     dead_time_s: f64,
     t_on_s: f64,
@@ -325,7 +325,7 @@ pub fn v_dead_ref(
     (dead_time_s + t_on_s - t_off_s) * pwm_hz * (vdc_v - v_sat_v + v_f_v) + 0.5 * (v_sat_v + v_f_v)
 }
 
-/// Float64 dead-time error vector (seed 001 eq. 7) with the signs `sat(i_x/band)`, computed as
+/// Float64 dead-time error vector (Khlaief, Boussak, Gossa (2012) eq. 7) with the signs `sat(i_x/band)`, computed as
 /// the complex sum `(2/3) V_dead [s_a + a s_b + a² s_c]`.
 pub fn dead_time_vector_ref(v_dead: f64, i_abc: [f64; 3], band: f64) -> [f64; 2] {
     let s = i_abc.map(|i| (i / band).clamp(-1.0, 1.0));
@@ -336,7 +336,7 @@ pub fn dead_time_vector_ref(v_dead: f64, i_abc: [f64; 3], band: f64) -> [f64; 2]
 }
 
 // ---------------------------------------------------------------------------------------------
-// Initial position detection (seed 001 §4, equations.md §4.2)
+// Initial position detection (Khlaief, Boussak, Gossa (2012) §4, docs/khlaief2012.md §3)
 // ---------------------------------------------------------------------------------------------
 
 /// Float64 arithmetic of the initial-position detector from the five peaks (A or pu): three

@@ -1,7 +1,7 @@
-//! Float64 references of the seed-000 estimators (equations.md §3), in SI units: the same
+//! Float64 references of the estimators of Solsona, Valla, Muravchik (2000) (docs/solsona2000.md), in SI units: the same
 //! discrete algorithms as `pmsm_core::observer`, so that a comparison isolates the fixed-point
 //! arithmetic and the per-unit scaling. Also: feeding a trajectory to either, and the
-//! continuous-time AO errors of seed 000 eq. 13–14.
+//! continuous-time AO errors of Solsona, Valla, Muravchik (2000) eq. 13–14.
 
 use crate::trajectory::Sample;
 use pmsm_core::MotorParams;
@@ -106,7 +106,7 @@ fn estimate_from_emf(emf: [f64; 2], psi: f64, min_emf: f64, dir: &mut RefDirecti
     }
 }
 
-/// The AO (seed 000 eq. 21–26), matched-pole discretisation.
+/// The AO (Solsona, Valla, Muravchik (2000) eq. 21–26), matched-pole discretisation.
 #[derive(Clone, Debug)]
 pub struct RefAo {
     meter: RefMeter,
@@ -141,7 +141,7 @@ impl RefAo {
     }
 }
 
-/// The NLO (seed 000 eq. 15–20, equations.md §3.2) with exact rotation.
+/// The NLO (Solsona, Valla, Muravchik (2000) eq. 15–20, docs/solsona2000.md §4) with exact rotation.
 #[derive(Clone, Debug)]
 pub struct RefNlo {
     meter: RefMeter,
@@ -208,7 +208,7 @@ impl RefNlo {
     }
 }
 
-/// Tomita's MRAS on the AO (seed 000 eq. 27–29).
+/// Tomita's MRAS on the AO (Solsona, Valla, Muravchik (2000) eq. 27–29).
 #[derive(Clone, Debug)]
 pub struct RefMras {
     ao: RefAo,
@@ -265,7 +265,7 @@ impl RefMras {
     }
 }
 
-/// Seed 000 eq. 13–14: steady-state AO errors at electrical speed `omega` with gain `g`
+/// Solsona, Valla, Muravchik (2000) eq. 13–14: steady-state AO errors at electrical speed `omega` with gain `g`
 /// (speed error rad/s, angle error rad).
 pub fn ao_steady_errors(omega: f64, g: f64) -> (f64, f64) {
     (

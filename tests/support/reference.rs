@@ -231,7 +231,7 @@ mod tests {
     use super::*;
 
     /// The reference itself: at constant speed (huge inertia) its steady-state dq currents
-    /// solve the phasor equations of equations.md §2.2.
+    /// solve the phasor equations of docs/khlaief2012.md §1.
     #[test]
     fn steady_state_matches_phasor_solution() {
         let mut p = MotorParams::new(3, 7.2, 0.025025, 0.04017, 0.305, 1e9, 0.0);

@@ -1,6 +1,6 @@
-//! Torque-consistent prescribed trajectories of a surface PMSM (scenarios.md, motor A): pick
+//! Torque-consistent prescribed trajectories of a surface PMSM (motor A, examples/motor-a.toml): pick
 //! the mechanical speed `ω_m(t)`, set `i_q = (J ω̇_m + B ω_m + T_L)/K_T`, `i_d = 0`, and compute
-//! `v = R i + L di/dt + e` (equations.md §2.1, with optional EMF harmonics). This is how seed 000
+//! `v = R i + L di/dt + e` (docs/solsona2000.md §1, with optional EMF harmonics). This is how Solsona, Valla, Muravchik (2000)
 //! runs its observers: open loop, on the voltages and currents of a simulated drive.
 
 use pmsm_core::MotorParams;
@@ -107,7 +107,7 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
-    /// Motor A of scenarios.md on `profile`, no harmonics, no load.
+    /// motor A (examples/motor-a.toml) on `profile`, no harmonics, no load.
     pub fn new(motor: MotorParams, profile: Profile) -> Self {
         Self {
             motor,
@@ -157,7 +157,7 @@ impl Trajectory {
     }
 }
 
-/// Motor A of scenarios.md (seed 000), with the paper's `K_T`.
+/// motor A (examples/motor-a.toml) (Solsona, Valla, Muravchik (2000)), with the paper's `K_T`.
 pub fn motor_a() -> MotorParams {
     let mut m = MotorParams::new(3, 1.6, 0.0134, 0.0134, 0.288, 0.04256, 0.004256);
     m.kt_nm_per_a = 1.108;

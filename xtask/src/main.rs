@@ -10,11 +10,11 @@
 mod accuracy;
 mod board;
 mod cffi;
+mod drive_motor_b;
 mod examples;
+mod observers_motor_a;
 mod pil;
 mod plant_speed;
-mod seed000;
-mod seed001;
 mod sweep;
 
 use anyhow::{Result, bail};
@@ -31,8 +31,8 @@ fn main() -> Result<()> {
         "examples" => examples::write_all(&root().join("examples")),
         "figures" => {
             let dir = root().join("docs/figures");
-            seed000::figures(&dir)?;
-            seed001::figures(&dir)?;
+            observers_motor_a::figures(&dir)?;
+            drive_motor_b::figures(&dir)?;
             eprintln!(
                 "wrote the figures of seeds 000 and 001 to {}",
                 dir.display()
@@ -47,7 +47,7 @@ fn main() -> Result<()> {
             sweep::run(n)
         }
         "robustness" => {
-            print!("{}", seed001::robustness_section()?);
+            print!("{}", drive_motor_b::robustness_section()?);
             Ok(())
         }
         _ => bail!("usage: cargo xtask perf | figures | examples | robustness | sweep [N]"),
@@ -63,12 +63,12 @@ fn perf() -> Result<()> {
     );
     eprintln!("measuring the accuracy of the fixed-point numerics ...");
     doc.push_str(&accuracy::section());
-    eprintln!("running the seed-000 estimators ...");
-    doc.push_str(&seed000::section());
-    eprintln!("running the seed-001 drive ...");
-    doc.push_str(&seed001::section()?);
+    eprintln!("running the estimators of Solsona, Valla, Muravchik (2000) ...");
+    doc.push_str(&observers_motor_a::section());
+    eprintln!("running the drive of Khlaief, Boussak, Gossa (2012) ...");
+    doc.push_str(&drive_motor_b::section()?);
     eprintln!("robustness to parameter errors ...");
-    doc.push_str(&seed001::robustness_section()?);
+    doc.push_str(&drive_motor_b::robustness_section()?);
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");

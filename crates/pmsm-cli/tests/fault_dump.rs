@@ -116,7 +116,7 @@ fn locked_rotor_dump_replays_with_observe() {
     assert!(worst_i < 0.1, "sampled |i| off the true one by {worst_i} A");
 
     // Replay: the NLO on the dump follows the rotor while it turns and sees it stop. The NLO
-    // models a surface motor (Solsona, Valla, Muravchik 2000) and motor B is interior
+    // models a surface motor and motor B is interior
     // (L_q/L_d = 1.6): its speed carries a saliency bias of about a quarter of the running
     // speed (measured: 67 rad/s at 251 rad/s, and 67 rad/s on the locked rotor), so the
     // bounds are 30 % of the running speed on either side of the lock.

@@ -140,7 +140,7 @@ fn check(name: &str, e: &Errors) {
         "{name}: peak speed {}",
         e.peak_speed_rad_s
     );
-    // The bounds are 0.5 %, 0.01 rad and 0.5 %; the model does far better.
+    // The required bounds are 0.5 %, 0.01 rad and 0.5 %; the model does far better.
     assert!(
         e.current_rms_rel < 1e-4,
         "{name}: current {}",

@@ -1,8 +1,8 @@
-//! Dead-time compensation of seed 001 §3 (eq. 7–9; equations.md §2.3 and §4.5).
+//! Dead-time compensation of Khlaief, Boussak, Gossa (2012) §3 (eq. 7–9; docs/khlaief2012.md §4).
 //!
 //! During the dead time of each switching edge a leg's output follows its current, not its
-//! command; averaged over a period the leg loses `V_dead sgn(i_x)` (seed 001 eq. 8, the
-//! numbering of the seed's own text):
+//! command; averaged over a period the leg loses `V_dead sgn(i_x)` (Khlaief, Boussak, Gossa (2012) eq. 8, the
+//! numbering of the paper's own text):
 //!
 //! ```text
 //! V_dead = (T_dead + T_on − T_off)/T_PWM · (V_DC − V_sat + V_f) + (V_sat + V_f)/2     (eq. 8)
@@ -30,7 +30,7 @@
 //! |---|---|---|
 //! | `Off` | `v_ref` | the command |
 //! | `Command` | `v_ref + V_dt` | the command (the estimator is not told) |
-//! | `Estimator` | `v_ref` | the command `− V_dt` (seed 001 eq. 9) |
+//! | `Estimator` | `v_ref` | the command `− V_dt` (Khlaief, Boussak, Gossa (2012) eq. 9) |
 //! | `Both` | `v_ref + V_dt` | the command `− V_dt` (= `v_ref` when nothing limits) |
 //!
 //! `V_dead` is scaled by the measured bus at run time (it is affine in `V_DC`).
@@ -59,7 +59,7 @@ pub enum DeadTimeMode {
     Off,
     /// Added to the voltage command only.
     Command,
-    /// Subtracted from the voltage the estimator uses only (seed 001 eq. 9).
+    /// Subtracted from the voltage the estimator uses only (Khlaief, Boussak, Gossa (2012) eq. 9).
     Estimator,
     /// Both.
     #[default]
@@ -338,9 +338,9 @@ mod tests {
     }
 
     #[test]
-    fn seed_value_and_modes() {
+    fn papers_inverter_value_and_modes() {
         let (c, base) = setup(DeadTimeMode::Both);
-        // 2 µs at 14 kHz on 540 V: 15.12 V (equations.md §2.3: "about 15 V").
+        // 2 µs at 14 kHz on 540 V: 15.12 V (docs/khlaief2012.md §4: "about 15 V").
         assert!((c.v_dead_nominal_v - 15.12).abs() < 1e-9);
         let vd = c.v_dead(base.voltage_pu(540.0));
         assert!((base.voltage_v(vd) - 15.12).abs() < 1e-5);

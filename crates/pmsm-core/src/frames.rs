@@ -1,4 +1,4 @@
-//! Reference frames as types, and the transforms between them (equations.md §1).
+//! Reference frames as types, and the transforms between them (docs/algorithms.md (conventions)).
 //!
 //! - [`Abc`]: phase quantities.
 //! - [`AlphaBeta`]: stationary two-phase frame, amplitude-invariant (peak phase = |αβ|).

@@ -1,22 +1,4 @@
 //! The fault recorder: the last `N` control samples before a fault, for the post-mortem.
-//!
-//! It is not part of [`Drive`] (the drive step's instruction budget stays what it is): the
-//! caller feeds it after each step, `recorder.record(&drive, &input)`, at a priority and a
-//! cost of its choosing (a copy of eleven words into a ring buffer). It keeps the newest `N`
-//! samples in a [`heapless::HistoryBuf`] and freezes when the drive enters `Fault`, so the
-//! samples that led to the fault stay, ending with the one at which the drive tripped.
-//! [`FaultRecorder::rearm`] empties it and records again (after `Drive::clear_fault`).
-//!
-//! Every field is the drive's own per-unit word, so a dump replays bit for bit through the
-//! fixed-point code (`pmsm observe`, or the estimators in a test):
-//!
-//! | field | unit, format | meaning |
-//! |---|---|---|
-//! | `i_abc` | `I_b`, Q8.24 | phase currents the step was given |
-//! | `vdc` | `V_b`, Q8.24 | bus voltage the step was given |
-//! | `v` | `V_b`, Q8.24, αβ | voltage the step commanded (held over the next period) |
-//! | `estimate` | turn (2³²), `ω_b` and `V_b` in Q8.24 | the estimator's output after the step |
-//! | `state` | [`DriveState::code`] | the state after the step |
 
 use heapless::HistoryBuf;
 
@@ -25,7 +7,7 @@ use crate::frames::{Abc, AlphaBeta};
 use crate::num::Pu;
 use crate::observer::Estimate;
 
-/// One recorded control sample (per unit, see the [module](self) table).
+/// One recorded control sample (per unit, see the table of [`FaultRecorder`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FaultSample {
     /// Phase currents given to the step.
@@ -40,7 +22,25 @@ pub struct FaultSample {
     pub state: u8,
 }
 
-/// The last `N` samples before a fault (see the [module](self) documentation).
+/// The last `N` samples before a fault.
+///
+/// It is not part of [`Drive`] (the drive step's instruction budget stays what it is): the
+/// caller feeds it after each step, `recorder.record(&drive, &input)`, at a priority and a
+/// cost of its choosing (a copy of eleven words into a ring buffer). It keeps the newest `N`
+/// samples in a [`heapless::HistoryBuf`] and freezes when the drive enters `Fault`, so the
+/// samples that led to the fault stay, ending with the one at which the drive tripped.
+/// [`FaultRecorder::rearm`] empties it and records again (after `Drive::clear_fault`).
+///
+/// Every field is the drive's own per-unit word, so a dump replays bit for bit through the
+/// fixed-point code (`pmsm observe`, or the estimators in a test):
+///
+/// | field | unit, format | meaning |
+/// |---|---|---|
+/// | `i_abc` | `I_b`, Q8.24 | phase currents the step was given |
+/// | `vdc` | `V_b`, Q8.24 | bus voltage the step was given |
+/// | `v` | `V_b`, Q8.24, αβ | voltage the step commanded (held over the next period) |
+/// | `estimate` | turn (2³²), `ω_b` and `V_b` in Q8.24 | the estimator's output after the step |
+/// | `state` | [`DriveState::code`] | the state after the step |
 #[derive(Clone, Debug)]
 pub struct FaultRecorder<const N: usize> {
     samples: HistoryBuf<FaultSample, N>,

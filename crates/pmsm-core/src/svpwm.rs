@@ -1,4 +1,4 @@
-//! Space-vector PWM by min–max zero-sequence injection (equations.md §4.3; seed 001 §2, Fig. 1,
+//! Space-vector PWM by min–max zero-sequence injection (docs/khlaief2012.md §5; Khlaief, Boussak, Gossa (2012) §2, Fig. 1,
 //! Fig. 5).
 //!
 //! ```text

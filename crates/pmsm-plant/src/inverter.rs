@@ -1,5 +1,5 @@
-//! Three-phase voltage-source inverter with dead time and device drops (seed 001 eq. 7–8,
-//! equations.md §2.3).
+//! Three-phase voltage-source inverter with dead time and device drops (Khlaief, Boussak, Gossa (2012) eq. 7–8,
+//! docs/khlaief2012.md §4).
 //!
 //! Each leg `x` is commanded with a duty `d_x ∈ [0, 1]` of a centre-aligned PWM of period `T`.
 //! Two models:
@@ -20,9 +20,9 @@
 //!
 //! Motor phase voltages are taken relative to the isolated neutral; the amplitude-invariant
 //! Clarke transform ([`crate::clarke`]) discards the common mode, so the leg voltages are
-//! transformed directly. The dead-time error vector of seed 001 eq. 7,
+//! transformed directly. The dead-time error vector of Khlaief, Boussak, Gossa (2012) eq. 7,
 //! `V_dt = (2/3) V_dead [sgn i_a + a sgn i_b + a² sgn i_c]`, is then exactly the difference
-//! between the commanded and the applied αβ voltage (seed 001 eq. 9), and has length
+//! between the commanded and the applied αβ voltage (Khlaief, Boussak, Gossa (2012) eq. 9), and has length
 //! `(4/3) V_dead` whenever no current is near zero.
 
 use pmsm_core::{InverterParams, ParamError, ParamReason, in_range, non_negative, positive};
@@ -126,7 +126,7 @@ impl InverterModel {
         self.params.dead_time_s + self.t_on_s - self.t_off_s
     }
 
-    /// Dead-time voltage (seed 001 eq. 8, equations.md §2.3), V:
+    /// Dead-time voltage (Khlaief, Boussak, Gossa (2012) eq. 8, docs/khlaief2012.md §4), V:
     /// `V_dead = (T_dead + T_on − T_off)/T_PWM · (V_DC − V_sat + V_f) + (V_sat + V_f)/2`.
     pub fn dead_voltage_v(&self, vdc_v: f64) -> f64 {
         self.effective_dead_time_s() * self.params.pwm_hz * (vdc_v - self.v_sat_v + self.v_f_v)
@@ -181,9 +181,9 @@ impl InverterModel {
         ])
     }
 
-    /// Dead-time error vector of seed 001 eq. 7, `[V_dt,α, V_dt,β]`, V:
+    /// Dead-time error vector of Khlaief, Boussak, Gossa (2012) eq. 7, `[V_dt,α, V_dt,β]`, V:
     /// `(2/3) V_dead [s_a + a s_b + a² s_c]` with the smooth signs of `i_abc_a`. The applied
-    /// voltage is the commanded one minus this (seed 001 eq. 9).
+    /// voltage is the commanded one minus this (Khlaief, Boussak, Gossa (2012) eq. 9).
     pub fn dead_time_error_alpha_beta_v(&self, vdc_v: f64, i_abc_a: [f64; 3]) -> [f64; 2] {
         let v = self.dead_voltage_v(vdc_v);
         // The amplitude-invariant Clarke transform of (s_a, s_b, s_c) is (2/3)(s_a + a s_b + a² s_c).

@@ -2,7 +2,7 @@
 //! and its phase-current sensing: the "real world" that the fixed-point drive of `pmsm-core`
 //! is tested against, on the host and inside an emulator.
 //!
-//! # Conventions (`docs/equations.md` §1)
+//! # Conventions (docs/algorithms.md (conventions))
 //!
 //! - SI units throughout; every name carries its unit (`_v`, `_a`, `_s`, `_rad_s`, `_h`,
 //!   `_wb`, `_nm`, `_j`). Angles and speeds are electrical unless named `_m` (mechanical):
@@ -18,12 +18,12 @@
 //!
 //! # Models
 //!
-//! - [`motor`]: the surface motor in αβ (seed 000 eq. 1–6, equations.md §2.1, with the 5th
-//!   and 7th EMF harmonics) and the interior or saturated motor in dq (seed 001 eq. 1–5,
-//!   equations.md §2.2), with the mechanics of equations.md §1, integrated by classical RK4.
-//! - [`saturation`]: d-axis saturation (equations.md §2.2) for the polarity detection.
+//! - [`motor`]: the surface motor in αβ (Solsona, Valla, Muravchik (2000) eq. 1–6, docs/solsona2000.md §1, with the 5th
+//!   and 7th EMF harmonics) and the interior or saturated motor in dq (Khlaief, Boussak, Gossa (2012) eq. 1–5,
+//!   docs/khlaief2012.md §1), with the mechanics of docs/algorithms.md (conventions), integrated by classical RK4.
+//! - [`saturation`]: d-axis saturation (docs/khlaief2012.md §1) for the polarity detection.
 //! - [`inverter`]: averaged and switching-level inverter with dead time and device drops
-//!   (seed 001 eq. 7–8, equations.md §2.3).
+//!   (Khlaief, Boussak, Gossa (2012) eq. 7–8, docs/khlaief2012.md §4).
 //! - [`sensor`]: the phase-current ADC (quantisation, offset, gain error, noise), sampled at the
 //!   PWM centre; [`noise`]: its deterministic random numbers.
 //! - [`plant`]: all of it stepped one PWM period at a time.
@@ -31,7 +31,7 @@
 //!
 //! # Example
 //!
-//! Motor B of seed 001 on its 540 V, 14 kHz inverter, one PWM period:
+//! Motor B of Khlaief, Boussak, Gossa (2012) on its 540 V, 14 kHz inverter, one PWM period:
 //!
 //! ```
 //! use pmsm_core::{InverterParams, MotorParams};
@@ -122,7 +122,7 @@ pub(crate) const SQRT3_2: f64 = 0.866_025_403_784_438_6;
 pub(crate) const FRAC_1_SQRT3: f64 = 0.577_350_269_189_625_8;
 
 /// Amplitude-invariant Clarke transform of phase quantities `[a, b, c]` to `[α, β]`
-/// (equations.md §1). The zero sequence is discarded.
+/// (docs/algorithms.md (conventions)). The zero sequence is discarded.
 pub fn clarke(abc: [f64; 3]) -> [f64; 2] {
     [
         (2.0 * abc[0] - abc[1] - abc[2]) / 3.0,
@@ -140,7 +140,7 @@ pub fn inverse_clarke(ab: [f64; 2]) -> [f64; 3] {
     ]
 }
 
-/// Park transform of `[α, β]` to `[d, q]` at electrical angle `theta_e_rad` (equations.md §1).
+/// Park transform of `[α, β]` to `[d, q]` at electrical angle `theta_e_rad` (docs/algorithms.md (conventions)).
 pub fn park(ab: [f64; 2], theta_e_rad: f64) -> [f64; 2] {
     let (s, c) = libm::sincos(theta_e_rad);
     [ab[0] * c + ab[1] * s, -ab[0] * s + ab[1] * c]

@@ -3,10 +3,10 @@
 //! Two state representations, chosen once from the model:
 //!
 //! - **αβ** (surface motor, `L_d = L_q`, linear magnetics): state `(i_α, i_β, θ, ω_m)`,
-//!   seed 000 eq. 1–6 as restated in equations.md §2.1, with the 5th and 7th EMF harmonics.
+//!   Solsona, Valla, Muravchik (2000) eq. 1–6 as restated in docs/solsona2000.md §1, with the 5th and 7th EMF harmonics.
 //!   `L = (L_d + L_q)/2` ([`MotorParams::is_surface`] tolerates 0.1 % of difference).
 //! - **dq** (interior motor, or any motor with non-linear [`Saturation`]): state
-//!   `(i_d, i_q, θ, ω_m)`, seed 001 eq. 1–4 as restated in equations.md §2.2, with `i_d` as the
+//!   `(i_d, i_q, θ, ω_m)`, Khlaief, Boussak, Gossa (2012) eq. 1–4 as restated in docs/khlaief2012.md §1, with `i_d` as the
 //!   state of the saturable d axis, `di_d/dt = (v_d − R i_d + ω ψ_q − e_h,d) / L_inc,d(i_d)`.
 //!
 //! In both, the stator voltage is given in the stationary frame and held constant over a step
@@ -19,23 +19,23 @@
 //!
 //! - αβ: `T = K_T (k(θ)·i)`, where the back-EMF is `e = ψ ω k(θ)` (without harmonics
 //!   `k·i = i_q`);
-//! - dq: `T = K_T/(1.5 p ψ) · 1.5 p (ψ_d(i_d) i_q − L_q i_q i_d + ψ (k_h·i_dq))` (seed 001 eq. 5
-//!   with the 1.5 of the amplitude-invariant transform, equations.md §1).
+//! - dq: `T = K_T/(1.5 p ψ) · 1.5 p (ψ_d(i_d) i_q − L_q i_q i_d + ψ (k_h·i_dq))` (Khlaief, Boussak, Gossa (2012) eq. 5
+//!   with the 1.5 of the amplitude-invariant transform, docs/algorithms.md (conventions)).
 //!
 //! With the default `K_T = 1.5 p ψ` the electrical power `1.5 v·i` splits exactly into copper
 //! loss `1.5 R |i|²`, the rate of change of [`Motor::magnetic_energy_j`] and the air-gap power
 //! `T ω_m`. A different `K_T` (motor A states 1.108 N·m/A where `1.5 p ψ` = 1.296) makes the
 //! mechanical side see a torque that the electrical side does not pay for; that is the model
-//! seed 000 simulates, and it is kept on purpose.
+//! Solsona, Valla, Muravchik (2000) simulates, and it is kept on purpose.
 //!
-//! # EMF harmonics (equations.md §2.1)
+//! # EMF harmonics (docs/solsona2000.md §1)
 //!
 //! `k(θ) = (−sin θ + h5 sin 5θ − h7 sin 7θ,  cos θ + h5 cos 5θ + h7 cos 7θ)`: a 5th harmonic
 //! turning backwards and a 7th turning forwards. In the rotor frame they are both at 6θ:
 //! `k_dq = ((h5 − h7) sin 6θ, 1 + (h5 + h7) cos 6θ)`; the dq model adds the harmonic part
 //! `e_h = ψ ω k_h` to the speed voltages, so harmonics also work with saturation.
 //!
-//! # Mechanics (equations.md §1)
+//! # Mechanics (docs/algorithms.md (conventions))
 //!
 //! `J dω_m/dt = T − B ω_m − T_L`, `dθ/dt = p ω_m`, or the rotor held ([`Mechanics`]).
 
@@ -71,9 +71,9 @@ pub struct MotorModel {
     pub params: MotorParams,
     /// d-axis flux model; non-linear forces the dq state representation.
     pub saturation: Saturation,
-    /// Relative amplitude of the 5th EMF harmonic (turning backwards), e.g. 0.042 in seed 000.
+    /// Relative amplitude of the 5th EMF harmonic (turning backwards), e.g. 0.042 in Solsona, Valla, Muravchik (2000).
     pub emf_h5: f64,
-    /// Relative amplitude of the 7th EMF harmonic (turning forwards), e.g. 0.025 in seed 000.
+    /// Relative amplitude of the 7th EMF harmonic (turning forwards), e.g. 0.025 in Solsona, Valla, Muravchik (2000).
     pub emf_h7: f64,
 }
 
@@ -158,7 +158,7 @@ impl Coeffs {
         }
     }
 
-    /// Stationary-frame EMF shape `k(θ)`, `e = ψ ω k` (equations.md §2.1).
+    /// Stationary-frame EMF shape `k(θ)`, `e = ψ ω k` (docs/solsona2000.md §1).
     fn emf_shape(&self, theta: f64) -> [f64; 2] {
         let (s1, c1) = libm::sincos(theta);
         if !self.harmonics {
@@ -212,7 +212,7 @@ impl Coeffs {
         let w_m = x[3];
         let w = self.p * w_m;
         let (di0, di1, torque) = if self.dq {
-            // Seed 001 eq. 1–4, equations.md §2.2: v_d = R i_d + dψ_d/dt − ω ψ_q (+ e_h,d),
+            // Khlaief, Boussak, Gossa (2012) eq. 1–4, docs/khlaief2012.md §1: v_d = R i_d + dψ_d/dt − ω ψ_q (+ e_h,d),
             // v_q = R i_q + L_q di_q/dt + ω ψ_d (+ e_h,q); v rotated at this stage's angle.
             let (i_d, i_q) = (x[0], x[1]);
             let v = park(v_ab, theta);
@@ -228,7 +228,7 @@ impl Coeffs {
                 * (psi_d * i_q - self.lq_h * i_q * i_d + self.psi_wb * (kh[0] * i_d + kh[1] * i_q));
             (did, diq, t)
         } else {
-            // Seed 000 eq. 3–6, equations.md §2.1: L di/dt = −R i − e + v, e = ψ ω k(θ).
+            // Solsona, Valla, Muravchik (2000) eq. 3–6, docs/solsona2000.md §1: L di/dt = −R i − e + v, e = ψ ω k(θ).
             let k = self.emf_shape(theta);
             let e = [self.psi_wb * w * k[0], self.psi_wb * w * k[1]];
             let dia = (v_ab[0] - self.r_ohm * x[0] - e[0]) / self.l_h;
@@ -236,7 +236,7 @@ impl Coeffs {
             let t = self.kt_scale * 1.5 * self.p * self.psi_wb * (k[0] * x[0] + k[1] * x[1]);
             (dia, dib, t)
         };
-        // Seed 000 eq. 1–2, equations.md §1: J dω_m/dt = T − B ω_m − T_L, dθ/dt = p ω_m.
+        // Solsona, Valla, Muravchik (2000) eq. 1–2, docs/algorithms.md (conventions): J dω_m/dt = T − B ω_m − T_L, dθ/dt = p ω_m.
         let (dtheta, dw_m) = match mech {
             Mechanics::Free => (w, (torque - self.b_nm_s * w_m - load_nm) / self.j_kg_m2),
             Mechanics::Locked => (0.0, 0.0),

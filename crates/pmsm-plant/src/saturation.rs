@@ -1,6 +1,6 @@
-//! d-axis magnetic saturation (equations.md §2.2).
+//! d-axis magnetic saturation (docs/khlaief2012.md §1).
 //!
-//! The initial-position detector of seed 001 (§4) tells north from south because current along
+//! The initial-position detector of Khlaief, Boussak, Gossa (2012) (§4) tells north from south because current along
 //! +d adds to the magnet flux and saturates the iron (lower incremental inductance, larger
 //! current peak), while current along −d relieves it. The model here keeps the nominal
 //! parameters exact at `i_d = 0` (`ψ_d(0) = ψ`, `dψ_d/di_d(0) = L_d`), so the linear model and
@@ -31,7 +31,7 @@ use pmsm_core::{MotorParams, ParamError, ParamReason, in_range};
 
 /// Strength `k` of the default saturation: `ψ_s = ψ + k L_d I_ref`.
 ///
-/// `I_ref` is twice the rated peak current (`2√2 · rated_current_a`), the peak of seed 001's
+/// `I_ref` is twice the rated peak current (`2√2 · rated_current_a`), the peak of Khlaief, Boussak, Gossa's (2012)
 /// 700 µs polarity pulse. On motor B (540 V, `L_d` = 25.025 mH, rated 2.53 A) `k = 4` gives
 /// `ψ_s` = 1.021 Wb and, for a 700 µs pulse whose linear peak is `I_ref` = 7.16 A (282 V,
 /// rotor locked), peaks of 7.66 A along +d (north) and 6.86 A along −d (south): 11.6 % apart,

@@ -1,4 +1,4 @@
-//! Phase-current sensing: an ADC per phase (equations.md §2.3).
+//! Phase-current sensing: an ADC per phase (docs/khlaief2012.md §4).
 //!
 //! The measured current is `(1 + g_x) i_x + o_x + n_x` (gain error `g_x`, offset `o_x`,
 //! Gaussian noise `n_x`), quantised by a bipolar ADC whose mid-scale code reads 0 A:

@@ -1,4 +1,4 @@
-//! Inverter: seed 001 eq. 8, the dead-time error vector (eq. 7), averaged against
+//! Inverter: Khlaief, Boussak, Gossa (2012) eq. 8, the dead-time error vector (eq. 7), averaged against
 //! switching-level integration, duty clamping and the plant's sample.
 
 mod common;
@@ -12,7 +12,7 @@ use pmsm_plant::{
 };
 
 #[test]
-fn dead_voltage_of_seed_001() {
+fn dead_voltage_of_the_papers_inverter() {
     // 2 µs at 14 kHz on 540 V with ideal devices: 0.028 × 540 = 15.12 V.
     let inv = InverterModel::new(inverter_b(), InverterKind::Averaged);
     let v = inv.dead_voltage_v(540.0);
@@ -58,7 +58,7 @@ fn dead_time_error_vector_is_four_thirds_v_dead() {
             "at {k}°: {mag} vs {}",
             4.0 / 3.0 * v_dead
         );
-        // Same as seed 001 eq. 7 evaluated directly.
+        // Same as Khlaief, Boussak, Gossa (2012) eq. 7 evaluated directly.
         let eq7 = inv.dead_time_error_alpha_beta_v(vdc, i);
         assert!((eq7[0] - err[0]).abs() < 1e-12 && (eq7[1] - err[1]).abs() < 1e-12);
         // The error opposes the current: it lies within 30° of the current vector.

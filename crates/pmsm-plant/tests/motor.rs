@@ -57,7 +57,7 @@ fn energy_balance(model: MotorModel, amp_v: f64, load_max_nm: f64) -> (f64, f64)
 
 #[test]
 fn power_balance_surface_with_harmonics() {
-    // Default K_T = 1.5 p ψ (energy-consistent), seed 000's harmonics.
+    // Default K_T = 1.5 p ψ (energy-consistent), Solsona, Valla, Muravchik's (2000) harmonics.
     let mut p = motor_a();
     p.kt_nm_per_a = 1.5 * p.p() * p.flux_wb;
     let mut model = MotorModel::new(p);

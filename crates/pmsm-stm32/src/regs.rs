@@ -61,7 +61,7 @@ pub fn adc_smpr(channels: &[u8], smp: u32) -> (u32, u32) {
     (r1, r2)
 }
 
-/// PGA gains (OPAMPx_CSR.PGA_GAIN[2:0], non-inverting 2 … 64 or inverting −1 … −63); `hw`
+/// PGA gains (OPAMPx_CSR.PGA_GAIN\[2:0\], non-inverting 2 … 64 or inverting −1 … −63); `hw`
 /// sets them with the network's bottom on VINM0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PgaGain {

@@ -1,5 +1,5 @@
 //! `pmsm ipd`: the fixed-point initial-position detector of the core against the plant, at one
-//! rotor angle or a sweep (seed 001 §4).
+//! rotor angle or a sweep (Khlaief, Boussak, Gossa (2012) §4).
 //!
 //! Each run builds the plant at standstill at the true angle (switching-level inverter with
 //! dead time, 12-bit current ADC, the motor's saturation), steps the detector once per PWM

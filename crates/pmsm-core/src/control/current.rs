@@ -1,7 +1,7 @@
-//! dq current controllers of seed 001 (§1, Fig. 5; equations.md §4.4).
+//! dq current controllers of Khlaief, Boussak, Gossa (2012) (§1, Fig. 5; docs/khlaief2012.md §6–7).
 //!
-//! Two PI controllers ([`super::pi::Pi`]) in the rotor frame, `i_d* = 0` by default (seed 001 §1), with the
-//! optional decoupling feed-forward of the dq model (seed 001 eq. 3–4, equations.md §2.2):
+//! Two PI controllers ([`super::pi::Pi`]) in the rotor frame, `i_d* = 0` by default (Khlaief, Boussak, Gossa (2012) §1), with the
+//! optional decoupling feed-forward of the dq model (Khlaief, Boussak, Gossa (2012) eq. 3–4, docs/khlaief2012.md §1):
 //!
 //! ```text
 //! v_d = PI_d(i_d* − i_d) − ω L_q i_q
@@ -188,7 +188,7 @@ impl CurrentConfig {
 /// What the current controllers see at one sample, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CurrentInput {
-    /// Current reference (`i_d* = 0` for seed 001's drive).
+    /// Current reference (`i_d* = 0` for Khlaief, Boussak, Gossa's (2012) drive).
     pub i_ref: Dq,
     /// Measured current in the (estimated) rotor frame.
     pub i: Dq,
@@ -251,7 +251,7 @@ impl CurrentController {
         let v_max = Pu::from_bits(frac_mul(c.vmax_per_vdc, vdc.to_bits()));
         let (ff_d, ff_q) = if c.decoupling {
             let w = input.omega;
-            // −ω L_q i_q and ω (L_d i_d + ψ): speed voltages of seed 001 eq. 3–4.
+            // −ω L_q i_q and ω (L_d i_d + ψ): speed voltages of Khlaief, Boussak, Gossa (2012) eq. 3–4.
             let ff_d = c.neg_lq.apply(mul(w, input.i.q));
             let flux_d = c.ld.apply(input.i.d).saturating_add(c.psi);
             (ff_d, mul(w, flux_d))

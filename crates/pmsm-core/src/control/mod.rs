@@ -1,4 +1,4 @@
-//! The control loops of the drive of seed 001 (equations.md §4.4): a fixed-point PI with
+//! The control loops of the drive of Khlaief, Boussak, Gossa (2012) (docs/khlaief2012.md §6–7): a fixed-point PI with
 //! anti-windup ([`pi`]), the dq current controllers ([`current`]) and the IP speed controller
 //! ([`speed`]).
 //!

@@ -1,5 +1,5 @@
 //! Fixed-point PI controller with feed-forward, symmetric output clamp and anti-windup
-//! (equations.md §4.4): the current loops' controller.
+//! (docs/khlaief2012.md §6–7): the current loops' controller.
 //!
 //! ```text
 //! u_raw = ff + K_p e + I                              output before the clamp

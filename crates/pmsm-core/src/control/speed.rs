@@ -1,4 +1,4 @@
-//! IP speed controller of seed 001 (nomenclature `K_iΩ`, `K_pΩ`; equations.md §4.4).
+//! IP speed controller of Khlaief, Boussak, Gossa (2012) (nomenclature `K_iΩ`, `K_pΩ`; docs/khlaief2012.md §6–7).
 //!
 //! ```text
 //! i_q* = K_iΩ ∫(ω* − ω̂) dt − K_pΩ ω̂,   clamped to ±I_max
@@ -10,7 +10,7 @@
 //! # Gains
 //!
 //! With an ideal current loop the electrical speed obeys `dω/dt = K i_q − (B/J) ω − p T_L/J`,
-//! `K = p K_T/J` (seed 001 eq. 5 with the 1.5 of equations.md §1 inside `K_T`). The IP loop is
+//! `K = p K_T/J` (Khlaief, Boussak, Gossa (2012) eq. 5 with the 1.5 of docs/algorithms.md (conventions) inside `K_T`). The IP loop is
 //! then
 //!
 //! ```text
@@ -19,7 +19,7 @@
 //!
 //! and for a natural frequency `ω_n` and damping `ζ`:
 //! `K_iΩ = ω_n²/K`, `K_pΩ = (2 ζ ω_n − B/J)/K` (not below 0). With `ζ ≥ 1` both poles are real
-//! and there is no zero, so the step response is monotone: no overshoot (seed 001 §7, Fig. 7).
+//! and there is no zero, so the step response is monotone: no overshoot (Khlaief, Boussak, Gossa (2012) §7, Fig. 7).
 //! Defaults: `ζ = 1`, `ω_n` a tenth of the default current-loop bandwidth, `0.005/T_s`
 //! (70 rad/s at 14 kHz), `I_max` = 1 pu (rated peak current).
 //!

@@ -21,7 +21,7 @@ use crate::units::PerUnit;
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum StartupMode {
-    /// Voltage pulses, saliency and saturation (seed 001 §4).
+    /// Voltage pulses, saliency and saturation (Khlaief, Boussak, Gossa (2012) §4).
     Ipd,
     /// A d-axis current along the α axis pulls the rotor to `θ = 0` first.
     Align,
@@ -99,7 +99,7 @@ impl Protection {
 pub struct DriveDesign {
     /// The estimator.
     pub estimator: EstimatorKind,
-    /// Gain `g` of the seed-000 estimators, rad/s.
+    /// Gain `g` of the estimators of Solsona, Valla, Muravchik (2000), rad/s.
     pub observer_gain_rad_s: f64,
     /// Adaptation gains of the current-model MRAS.
     pub mras_current: MrasCurrentGains,

@@ -1,5 +1,5 @@
 //! The sensorless drive: one [`Drive::step`] per control sample, from sampled phase currents
-//! and bus voltage to three duties (seed 001 Fig. 1, equations.md §4).
+//! and bus voltage to three duties (Khlaief, Boussak, Gossa (2012) Fig. 1, docs/khlaief2012.md).
 //!
 //! ```text
 //!  i_abc, v_dc ─► protection ─► Clarke ─► estimator (i, v over the last period) ─► θ̂, ω̂

@@ -1,5 +1,5 @@
 //! Start-up of the drive without the estimator: the alignment, and the open-loop current-vector
-//! ("I–f") start that the back-EMF estimators of seed 000 need, since they see nothing at
+//! ("I–f") start that the back-EMF estimators of Solsona, Valla, Muravchik (2000) need, since they see nothing at
 //! standstill.
 //!
 //! # Open-loop start

@@ -1,5 +1,5 @@
-//! Initial rotor position detection at standstill by voltage pulses (seed 001 §4, eq. 10–13,
-//! Tables 1–2; equations.md §4.2).
+//! Initial rotor position detection at standstill by voltage pulses (Khlaief, Boussak, Gossa (2012) §4, eq. 10–13,
+//! Tables 1–2; docs/khlaief2012.md §3).
 //!
 //! # Sequence
 //!
@@ -16,11 +16,11 @@
 //! decays. The **peak** of pulse `k` is the current along `φ` at the end of its first stage
 //! minus the current along `φ` at its start.
 //!
-//! # Angle modulo π (seed 001 eq. 10–13, restated in equations.md §4.2)
+//! # Angle modulo π (Khlaief, Boussak, Gossa (2012) eq. 10–13, restated in docs/khlaief2012.md §3)
 //!
 //! For a locked rotor and a short pulse, the current along `φ` grows as
 //! `V t [Σ + Δ cos 2(θ − φ)]`, `Σ = (1/L_d + 1/L_q)/2`, `Δ = (1/L_d − 1/L_q)/2`
-//! (equations.md §2.2), so the peaks are `I_k = I_0 + ΔI cos(2θ − 2φ_k)` and
+//! (docs/khlaief2012.md §1), so the peaks are `I_k = I_0 + ΔI cos(2θ − 2φ_k)` and
 //!
 //! ```text
 //! 2θ = atan2(√3/2 (I_3 − I_2), I_1 − (I_2 + I_3)/2)
@@ -32,12 +32,12 @@
 //! [`IpdFault::LowSaliency`] instead of returning a wrong angle (a surface motor). A motor with
 //! `L_d > L_q` has its largest current along q: the result is turned by π/2.
 //!
-//! # Polarity (seed 001 §4, Fig. 4)
+//! # Polarity (Khlaief, Boussak, Gossa (2012) §4, Fig. 4)
 //!
 //! Long pulses along the two candidates: the one along the magnet's north pole adds to the
 //! magnet flux, saturates the d axis, lowers its incremental inductance and gives the larger
 //! peak. `θ_0 = θ̂` if `I_4 > I_5`, else `θ̂ + π`. A relative difference below
-//! [`IpdDesign::min_polarity`] is [`IpdFault::NoPolarity`]. (Seed 001's Table 1 variant, long
+//! [`IpdDesign::min_polarity`] is [`IpdFault::NoPolarity`]. (Khlaief, Boussak, Gossa's (2012) Table 1 variant, long
 //! pulses along the three phase axes, needs one more pulse and resolves only the 120° sector;
 //! the two candidates of the short pulses are enough.)
 //!
@@ -48,14 +48,14 @@
 //! `T = −(L/R) ln(1 − R I/V_p)`, with `L = 2/(1/L_d + 1/L_q)` (the mean `Σ`) for the short
 //! pulses and `L = L_d` for the long ones (they point along d), rounded to whole control
 //! samples. Defaults: short peak 0.5 `I_b` (half the rated peak current), long peak 2 `I_b`
-//! (seed 001: "approximately twice the nominal current"). On motor B at 540 V and 14 kHz this
+//! (Khlaief, Boussak, Gossa (2012): "approximately twice the nominal current"). On motor B at 540 V and 14 kHz this
 //! gives 3 samples (214 µs; seed: 200 µs) and 10 samples (714 µs; seed: 700 µs); on a 24 V,
 //! 0.6/1.0 mH, 5 A motor at 20 kHz, 4 and 17 samples. `N_off` is 5 electrical time
 //! constants `max(L_d, L_q)/R` (what is left of the ramp back has decayed below 1 %).
 //!
 //! Measured on the plant (switching inverter with dead time, 12-bit ADC, default saturation;
 //! `tests/drive_parts_ipd.rs`): worst error over 72 angles 2.0° on motor B at 14 kHz, 2.7°
-//! at 7 kHz, 1.4° on the small motor, polarity always right; seed 001 reports 15°.
+//! at 7 kHz, 1.4° on the small motor, polarity always right; Khlaief, Boussak, Gossa (2012) reports 15°.
 //!
 //! # Safety
 //!
@@ -292,7 +292,7 @@ pub struct IpdResult {
     /// Electrical angle of the magnet's north pole. Read as `theta.0 as u32` it is in
     /// [0, 2π) (2³² per turn).
     pub theta: Angle,
-    /// Starting sector of seed 001 Table 2: 1 for [0°, 60°), …, 6 for [300°, 360°).
+    /// Starting sector of Khlaief, Boussak, Gossa (2012) Table 2: 1 for [0°, 60°), …, 6 for [300°, 360°).
     pub sector: u8,
     /// Angle modulo π from the short pulses, in [−π/2, π/2).
     pub theta_mod_pi: Angle,
@@ -308,7 +308,7 @@ impl IpdResult {
     }
 }
 
-/// Starting sector (seed 001 Table 2) of an angle: 1 + ⌊θ/60°⌋ with θ in [0°, 360°).
+/// Starting sector (Khlaief, Boussak, Gossa (2012) Table 2) of an angle: 1 + ⌊θ/60°⌋ with θ in [0°, 360°).
 pub fn sector(theta: Angle) -> u8 {
     (((theta.0 as u32 as u64) * 6) >> 32) as u8 + 1
 }
@@ -523,7 +523,7 @@ impl Ipd {
         }
     }
 
-    /// `θ` mod π from the three short peaks (eq. 12–13 as restated in equations.md §4.2).
+    /// `θ` mod π from the three short peaks (eq. 12–13 as restated in docs/khlaief2012.md §3).
     fn saliency(&mut self) -> Result<(), IpdFault> {
         let [i1, i2, i3, _, _] = self.peaks;
         // X = I_1 − (I_2 + I_3)/2, Y = √3/2 (I_3 − I_2), in i64 then back to Pu (exact halves).

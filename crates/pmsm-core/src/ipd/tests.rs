@@ -10,7 +10,7 @@ fn motor_b() -> (MotorParams, PerUnit) {
 fn motor_b_pulses_match_the_seed() {
     let (m, b) = motor_b();
     let c = IpdConfig::new(&m, &b, IpdDesign::default()).unwrap();
-    // Seed 001: 200 µs and 700 µs.
+    // Khlaief, Boussak, Gossa (2012): 200 µs and 700 µs.
     assert_eq!(c.n_short, 3);
     assert_eq!(c.n_long, 10);
     assert!(c.total_samples() < 14_000 / 2);

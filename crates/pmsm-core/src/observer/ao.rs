@@ -1,8 +1,8 @@
-//! AO: the linear reduced-order observer of seed 000 (eq. 21–26, equations.md §3.1).
+//! AO: the linear reduced-order observer of Solsona, Valla, Muravchik (2000) (eq. 21–26, docs/solsona2000.md §3).
 //!
 //! Continuous form: `dξ/dt = g (−R i − ê + v)`, `ê = ξ − L g i`, whose error dynamics are
 //! `dê/dt = g (e − ê)`: a first-order lag of bandwidth `g` on the EMF. At constant electrical
-//! speed `Ω` this leaves the errors of seed 000 eq. 13–14, `ε_θ = atan(−Ω/g)`,
+//! speed `Ω` this leaves the errors of Solsona, Valla, Muravchik (2000) eq. 13–14, `ε_θ = atan(−Ω/g)`,
 //! `ε_ω = Ω (g/√(g² + Ω²) − 1)`.
 //!
 //! # Discretisation
@@ -10,8 +10,8 @@
 //! The filter is applied to the mean EMF of each interval, [`EmfMeter`]: `ê_k = ê_{k−1} +
 //! κ (ē_k − ê_{k−1})` with the matched pole `κ = 1 − exp(−g T_s)`. This reproduces eq. 13–14
 //! within 0.6 % of the angle error and exactly in speed even at `g T_s = 0.25` (forward Euler,
-//! `κ = g T_s`, misses the speed error by 25 % there). Speed `|ω̂| = |ê|/ψ` (eq. 26) with the
-//! sign from [`Direction`]; angle from eq. 25 (`θ̂ = ∠ê ∓ 90°`).
+//! `κ = g T_s`, misses the speed error by 25 % there). Speed `|ω̂| = |ê|/ψ` (eq. 25) with the
+//! sign from [`Direction`]; angle from eq. 26 (`θ̂ = ∠ê ∓ 90°`).
 //!
 //! Signals: `ê` Q8.24 per unit of `V_b`; `κ` a [`Gain`].
 

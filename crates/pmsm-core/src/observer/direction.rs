@@ -1,6 +1,6 @@
 //! Direction of rotation from the sense in which an EMF vector turns.
 //!
-//! `|ê|` gives only the magnitude of the speed (seed 000 eq. 12, 20); its sign is the sense in
+//! `|ê|` gives only the magnitude of the speed (Solsona, Valla, Muravchik (2000) eq. 12, 19); its sign is the sense in
 //! which `ê` turns. The angle step `Δφ` of a (filtered) EMF vector between samples is averaged
 //! by a first-order filter of time constant [`TIME_CONSTANT_S`]; the direction flips when the
 //! mean step exceeds a threshold of the other sign (hysteresis), so noise at standstill does

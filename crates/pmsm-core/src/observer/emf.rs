@@ -1,6 +1,6 @@
 //! The back-EMF that the measurements imply over each sample interval.
 //!
-//! From `L di/dt = −R i − e + v` (equations.md §1), integrated exactly over
+//! From `L di/dt = −R i − e + v` (docs/algorithms.md (conventions)), integrated exactly over
 //! `[t_{k−1}, t_k]`, the mean EMF over the interval is
 //!
 //! ```text
@@ -154,7 +154,7 @@ impl EmfToRotor {
 
 /// The angle of the rotor d axis from the angle `phi` of a back-EMF vector: the EMF leads d by
 /// +90° when turning forwards (`ψ ω (−sin θ, cos θ)`) and lags it by 90° backwards
-/// (Solsona, Valla, Muravchik (2000), eq. 11, 19: `θ̂ = atan2(−ê_α/s, ê_β/s)`).
+/// (Solsona, Valla, Muravchik (2000), eq. 11, 20: `θ̂ = atan2(−ê_α/s, ê_β/s)`).
 #[inline(always)]
 pub(crate) fn rotor_angle_from_emf(phi: Angle, forward: bool) -> Angle {
     if forward {

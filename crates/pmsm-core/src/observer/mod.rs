@@ -122,13 +122,13 @@ pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EstimatorKind {
-    /// Seed 000 NLO.
+    /// Solsona, Valla, Muravchik (2000) NLO.
     Nlo,
-    /// Seed 000 AO.
+    /// Solsona, Valla, Muravchik (2000) AO.
     Ao,
-    /// Seed 000 MRAS on the AO.
+    /// Solsona, Valla, Muravchik (2000) MRAS on the AO.
     MrasEmf,
-    /// Seed 001 current-model MRAS.
+    /// Khlaief, Boussak, Gossa (2012) current-model MRAS.
     MrasCurrent,
 }
 
@@ -310,9 +310,9 @@ impl Estimator for AnyEstimator {
     }
 }
 
-/// Default gain `g` of the seed-000 observers for `motor`: three times its rated electrical
+/// Default gain `g` of the observers of Solsona, Valla, Muravchik (2000) for `motor`: three times its rated electrical
 /// speed (the base speed when it has no rating), within `[100, 0.25/T_s]` rad/s. Motor A
-/// (1200 r/min, 3 pole pairs) gets 1131 rad/s; seed 000 uses 1000.
+/// (1200 r/min, 3 pole pairs) gets 1131 rad/s; Solsona, Valla, Muravchik (2000) uses 1000.
 pub fn default_observer_gain(
     motor: &crate::params::MotorParams,
     base: &crate::units::PerUnit,

@@ -1,4 +1,4 @@
-//! MRAS: Tomita's adaptive speed estimator on the AO (seed 000 eq. 27–29, equations.md §3.3).
+//! MRAS: Tomita's adaptive speed estimator on the AO (Solsona, Valla, Muravchik (2000) eq. 27–29, docs/solsona2000.md §5).
 //!
 //! An adjustable EMF model `ẽ` turns at the adapted speed `ω̂_Ad` and is pulled toward the
 //! AO's estimate `ê_AO`:
@@ -30,7 +30,7 @@ use crate::num::{Gain, Pu, mul, pu_from_f64, sat_i32};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
-/// Seed 000's constants `c1, c2, c3` (SI, electrical).
+/// Solsona, Valla, Muravchik's (2000) constants `c1, c2, c3` (SI, electrical).
 pub const PAPER_CONSTANTS: [f64; 3] = [0.0347, 5208.0, 0.1];
 /// Smallest `ω̂_AO` used in the adaptation law, per unit.
 pub const MIN_SPEED_PU: f64 = 0.005;
@@ -156,16 +156,16 @@ impl Estimator for MrasEmf {
         let reference = ao.emf;
         let speed_ao = ao.omega.saturating_abs().max(c.min_speed);
         // Adjustable model to t_k: exact rotation at the last adapted speed, then the pull
-        // toward ê_AO (seed 000 eq. 27).
+        // toward ê_AO (Solsona, Valla, Muravchik (2000) eq. 27–28).
         let turn = Angle(c.step.apply_bits(self.last.omega.to_bits()));
         let turned = rotate(self.model, turn.sin_cos());
         let pull = pull_fraction(c.pull.apply(speed_ao));
         self.model = approach(turned, reference, Gain::from_raw(pull.to_bits(), 24));
-        // ε = ẽ × (ê_AO − ẽ) at the same instant (seed 000 eq. 28).
+        // ε = ẽ × (ê_AO − ẽ) at the same instant (the bracket of Solsona, Valla, Muravchik (2000) eq. 29).
         let d = reference.saturating_sub(self.model);
         let eps = mul(d.beta, self.model.alpha).saturating_sub(mul(d.alpha, self.model.beta));
         self.integral = self.integral.saturating_add(c.k_int.apply(eps));
-        // ω̂_Ad = (k1 ε + k2 ∫) / ω̂_AO (seed 000 eq. 29).
+        // ω̂_Ad = (k1 ε + k2 ∫) / ω̂_AO (Solsona, Valla, Muravchik (2000) eq. 29).
         let num = c.k1.apply(eps).saturating_add(c.k2.apply(self.integral));
         let omega = Pu::from_bits(sat_i32(
             // speed_ao ≥ MIN_SPEED_PU > 0; checked so that no panic path is linked.

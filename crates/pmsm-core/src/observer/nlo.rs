@@ -1,7 +1,7 @@
-//! NLO: the nonlinear reduced-order observer of seed 000 (eq. 9–10, 15–20), in the
-//! singularity-free form of equations.md §3.2.
+//! NLO: the nonlinear reduced-order observer of Solsona, Valla, Muravchik (2000) (eq. 9–10, 15–20), in the
+//! singularity-free form of docs/solsona2000.md §4.
 //!
-//! The EMF model is its own time derivative under the mechanics of seed 000 eq. 1–6:
+//! The EMF model is its own time derivative under the mechanics of Solsona, Valla, Muravchik (2000) eq. 1–6:
 //!
 //! ```text
 //! dê/dt = f(ê, i, ω̂) + g (e − ê)
@@ -11,7 +11,7 @@
 //! (the continuous observer `dν/dt = f + g(−R i − ê + v)`, `ê = ν − L g i`, written for its
 //! EMF estimate). With exact parameters the steady-state error is zero at any constant speed.
 //!
-//! # Discretisation (equations.md §3.2: it matters)
+//! # Discretisation (docs/solsona2000.md §4: it matters)
 //!
 //! Per sample, with `Δ = ω̂ T_s` from the previous estimate:
 //!
@@ -24,7 +24,7 @@
 //! - the slow mechanical terms use forward Euler.
 //!
 //! When `|ê|` is below [`MIN_EMF_PU`](super::emf::MIN_EMF_PU) the direction `û` of the previous estimate is kept
-//! (equations.md §3.2). Speed and angle as the AO (eq. 19–20).
+//! (docs/solsona2000.md §4). Speed and angle as the AO (eq. 19–20).
 //!
 //! Signals: `ê` Q8.24 per unit of `V_b`; `Δ` an [`Angle`]; `sinc` Q2.30; gains [`Gain`].
 

@@ -1,9 +1,9 @@
-//! Motors and inverter of the two seeds (scenarios.md), shared by the integration tests.
+//! Motors A and B and their inverters (examples/motor-a.toml, motor-b.toml), shared by the integration tests.
 #![allow(dead_code)]
 
 use pmsm_core::MotorParams;
 
-/// Motor A (seed 000, surface) with the paper's K_T = 1.108 N·m/A.
+/// Motor A (Solsona, Valla, Muravchik (2000), surface) with the paper's K_T = 1.108 N·m/A.
 pub fn motor_a() -> MotorParams {
     let mut m = MotorParams::new(3, 1.6, 0.0134, 0.0134, 0.288, 0.04256, 0.004256);
     m.kt_nm_per_a = 1.108;

@@ -7,7 +7,7 @@
 //! in a control interrupt would.
 //!
 //! To add a component, add one `report(...)` to [`run_all`] (names are stable identifiers:
-//! `snake_case`, the function, not the paper). The drive's parts run on motor B (seed 001);
+//! `snake_case`, the function, not the paper). The drive's parts run on motor B (Khlaief, Boussak, Gossa (2012));
 //! `ipd_step` and `drive_step` on the recorded closed loop of the `drive` replay case.
 
 use core::hint::black_box;
@@ -374,7 +374,7 @@ pub fn run_all(
         &bench_estimator(meter, setup, || MrasEmf::new(c)),
     );
 
-    // The drive's parts, on motor B (seed 001) at 14 kHz on 540 V.
+    // The drive's parts, on motor B (Khlaief, Boussak, Gossa (2012)) at 14 kHz on 540 V.
     let b = Setup::motor_b()?;
     let vdc = b.base.voltage_pu(b.inverter.vdc_v);
     let c = MrasCurrentConfig::new(

@@ -2,7 +2,7 @@
 //! host on its scenario and writes the input and output words of each step to PATH (default
 //! `examples/qemu/target/pil/recording.bin`), which the firmware embeds (`PIL_RECORDING`).
 //!
-//! Scenario of the estimator cases: motor A (seed 000) turning at 120 rad/s mechanical, then
+//! Scenario of the estimator cases: motor A (Solsona, Valla, Muravchik (2000)) turning at 120 rad/s mechanical, then
 //! slowing to 115 rad/s with a raised-cosine profile (a torque-consistent prescribed trajectory,
 //! `i_d = 0`, as `tests/support/trajectory.rs`), sampled at 20 kHz with ADC-like noise on the
 //! currents and voltages; the estimators start from zero state, so the recording covers their
@@ -465,7 +465,7 @@ impl SplitMix {
 
 /// Per-unit estimator inputs of the trajectory with the truth `(θ_e, ω_e)` of each sample.
 /// The voltage of sample k is the mean over `[t_{k−1}, t_k]` (trapezoid), as `pmsm observe`
-/// and the seed-000 tests feed it.
+/// and the tests of Solsona, Valla, Muravchik (2000) feed it.
 fn estimator_inputs(setup: &Setup, steps: usize) -> Vec<(ObserverInput, (f64, f64))> {
     let m = &setup.motor;
     let base: &PerUnit = &setup.base;

@@ -203,7 +203,7 @@ pub const STATE_RUN: i32 = DriveState::Run.code() as i32;
 /// Output word of the drive case holding the state after the step.
 pub const DRIVE_STATE_WORD: usize = 6;
 
-/// The seed-001 sensorless drive (`Drive::step`) on motor B at 14 kHz with the current-model
+/// The Khlaief, Boussak, Gossa (2012) sensorless drive (`Drive::step`) on motor B at 14 kHz with the current-model
 /// MRAS, started by initial position detection ([`Setup::drive`]).
 ///
 /// Inputs (5 words): `i_a, i_b, i_c, v_dc, ω*` (Q8.24). Outputs (7 words): duties `a, b, c`
@@ -246,7 +246,7 @@ impl Case for DriveCase {
 /// Drive steps per recorded step of [`ClosedLoopCase`].
 pub const CLOSED_LOOP_CHUNK: usize = 25;
 
-/// Processor-in-the-loop proper (issue 5 (a)): the drive and `pmsm-plant` both run on the
+/// Processor-in-the-loop proper: the drive and `pmsm-plant` both run on the
 /// target, in a closed loop, and what they compute is compared with the host's run of the
 /// same code. Motor B at rest at θ = 137°, the angle known (no detection), averaged inverter
 /// at 540 V and 14 kHz, 12-bit ADC, the current-model MRAS; the speed reference ramps at

@@ -1,7 +1,7 @@
 //! What the processor-in-the-loop host recorder and the QEMU firmware share, so that both run
 //! literally the same code around `pmsm-core`:
 //!
-//! - [`setup`]: motor A of `scenarios.md` on a 300 V bus at 20 kHz, its per-unit bases and the
+//! - [`setup`]: motor A (examples/motor-a.toml) on a 300 V bus at 20 kHz, its per-unit bases and the
 //!   estimator configurations (built in `f64`, on the host and on the target alike);
 //! - [`cases`]: the functions whose steps are recorded on the host and replayed on the target
 //!   ([`cases::Case`]: a step maps a list of `i32` input words to a list of `i32` output

@@ -1,4 +1,4 @@
-//! Motor A of `docs/scenarios.md` (seed 000) on a 300 V bus, sampled at 20 kHz.
+//! motor A (examples/motor-a.toml) (Solsona, Valla, Muravchik (2000)) on a 300 V bus, sampled at 20 kHz.
 
 use pmsm_core::{AoConfig, EstimatorKind, MrasEmfConfig, NloConfig};
 use pmsm_core::{ConfigError, InverterParams, MotorParams, PerUnit};
@@ -8,7 +8,7 @@ use pmsm_core::{DriveConfig, DriveOptions, StartupMode};
 pub const SAMPLE_HZ: f64 = 20e3;
 /// DC bus, V.
 pub const VDC_V: f64 = 300.0;
-/// Observer gain `g` of the NLO and the AO (scenarios.md, motor A), rad/s.
+/// Observer gain `g` of the NLO and the AO (motor A, examples/motor-a.toml), rad/s.
 pub const OBSERVER_GAIN_RAD_S: f64 = 1000.0;
 
 /// Motor A (surface PMSM, 1.2 kW, 1200 r/min) with the paper's `K_T`.
@@ -70,10 +70,10 @@ impl Setup {
     }
 }
 
-/// Control sample rate of the drive runs (motor B, seed 001): the 14 kHz PWM, Hz.
+/// Control sample rate of the drive runs (motor B, Khlaief, Boussak, Gossa (2012)): the 14 kHz PWM, Hz.
 pub const DRIVE_SAMPLE_HZ: f64 = 14e3;
 
-/// Motor B of seed 001 (interior PMSM, 1.1 kW): p = 3, R = 7.2 Ω, L_d = 25.025 mH,
+/// Motor B of Khlaief, Boussak, Gossa (2012) (interior PMSM, 1.1 kW): p = 3, R = 7.2 Ω, L_d = 25.025 mH,
 /// L_q = 40.17 mH, ψ = 0.305 Wb, J = 0.0036 kg·m², B = 0.0011 N·m·s, rated 2.53 A, 3000 r/min
 /// (`examples/motor-b.toml`).
 pub fn motor_b() -> MotorParams {
@@ -83,7 +83,7 @@ pub fn motor_b() -> MotorParams {
     m
 }
 
-/// The inverter of seed 001: 540 V bus, 14 kHz SVPWM, 2 µs dead time; current full scale
+/// The inverter of Khlaief, Boussak, Gossa (2012): 540 V bus, 14 kHz SVPWM, 2 µs dead time; current full scale
 /// 4 `I_b` (as `pmsm simulate` defaults it).
 pub fn inverter_b() -> Result<InverterParams, ConfigError> {
     let mut inv = InverterParams {
@@ -110,7 +110,7 @@ impl Setup {
         })
     }
 
-    /// The seed-001 drive of `pmsm simulate` (every default of
+    /// The drive of Khlaief, Boussak, Gossa (2012) of `pmsm simulate` (every default of
     /// [`DriveDesign::default_for`](pmsm_core::DriveDesign::default_for)) with `estimator`
     /// and `startup`.
     pub fn drive(

@@ -11,8 +11,8 @@
 //! applied over `[t_k, t_{k+1})`, as `pmsm plant` takes it and a PWM drive logs its command)
 //! it is `v_{k−1}`.
 //!
-//! Layout: [`input`] reads and checks the columns and sets the per-unit bases; [`estimate`]
-//! builds the estimator and runs it over the rows; [`report`] prints and draws the result.
+//! Layout: `input` reads and checks the columns and sets the per-unit bases; `estimate`
+//! builds the estimator and runs it over the rows; `report` prints and draws the result.
 
 mod estimate;
 mod input;
@@ -28,11 +28,11 @@ use std::path::PathBuf;
 /// The estimators `pmsm observe` runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Observer {
-    /// Nonlinear reduced-order observer (seed 000 eq. 15–20).
+    /// Nonlinear reduced-order observer (Solsona, Valla, Muravchik (2000) eq. 15–20).
     Nlo,
-    /// Linear reduced-order observer (seed 000 eq. 21–26).
+    /// Linear reduced-order observer (Solsona, Valla, Muravchik (2000) eq. 21–26).
     Ao,
-    /// Tomita's MRAS speed estimator on the AO (seed 000 eq. 27–29).
+    /// Tomita's MRAS speed estimator on the AO (Solsona, Valla, Muravchik (2000) eq. 27–29).
     MrasEmf,
 }
 

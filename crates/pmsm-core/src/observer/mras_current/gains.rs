@@ -14,7 +14,7 @@ pub struct MrasCurrentGains {
     /// Integral gain `K_iω_r-est`.
     pub ki: f64,
     /// Gain `K_L` of the load-current estimate, A/(A²·s); zero turns the mechanical model off
-    /// (the plain MRAS of seed 001).
+    /// (the plain MRAS of Khlaief, Boussak, Gossa (2012)).
     pub kl: f64,
 }
 

@@ -1,4 +1,4 @@
-//! Current-model MRAS speed and position estimator of seed 001 (eq. 14–23, equations.md §4.1).
+//! Current-model MRAS speed and position estimator of Khlaief, Boussak, Gossa (2012) (eq. 14–23, docs/khlaief2012.md §2).
 //!
 //! The measured currents are taken to the **estimated** rotor frame (`θ̂`) and compared with
 //! an adjustable model of the motor run in that frame at the estimated speed:
@@ -92,14 +92,14 @@
 //! Near standstill ξ carries almost no information on the position (the EMF error vanishes
 //! with ω), and a speed that changes sign under load drags the estimate away. The mechanical
 //! model knows how the speed changes: the measured torque current accelerates the rotor by
-//! `a (i_q − i_L) − (B/J) ω̂`, `a = p K_T/J` (equations.md §1), where `i_L` is the load seen as
+//! `a (i_q − i_L) − (B/J) ω̂`, `a = p K_T/J` (docs/algorithms.md (conventions)), where `i_L` is the load seen as
 //! a current. Every sample that acceleration is added to the speed integrator, and the load
 //! estimate follows `dî_L/dt = −K_L ξ` (a rotor ahead of the estimate means less load than
 //! assumed). Linearised, `ξ ≈ k δ`, the position error obeys
 //! `δ‴ + K_p k δ″ + K_i k δ′ + a K_L k δ = 0`; [`MrasCurrentGains::design`] places its poles.
 //! Through zero speed `k → 0`: the loop opens, and the model carries the estimate with the load
 //! learned before, so a reversal under a load that does not reverse with it keeps its lock.
-//! `K_L = 0` gives the plain MRAS of seed 001.
+//! `K_L = 0` gives the plain MRAS of Khlaief, Boussak, Gossa (2012).
 //!
 //! # Formats
 //!

@@ -1,4 +1,4 @@
-//! Seed 001 on motor B: figures 6–7 and the initial-position sweep (`cargo xtask figures`), and
+//! Khlaief, Boussak, Gossa (2012) on motor B: figures 6–7 and the initial-position sweep (`cargo xtask figures`), and
 //! the drive's accuracy table next to the paper's figures (`cargo xtask perf`).
 
 use anyhow::Result;
@@ -131,13 +131,13 @@ pub fn section() -> Result<String> {
     };
     let (with, without) = (at150("true")?, at150("false")?);
     let mut s = String::from(
-        "## Seed 001 drive on motor B\n\n\
+        "## Khlaief, Boussak, Gossa (2012) drive on motor B\n\n\
          `pmsm simulate` on the shipped scenarios: the fixed-point drive against the plant with \
          the switching-level inverter (540 V, 14 kHz, 2 µs dead time, compensated), 12-bit current \
          ADC, the default d-axis saturation, start by initial position detection, current-model \
          MRAS. Figures: `cargo xtask figures` (`docs/figures/fig6-*.svg`, `fig7-*.svg`, \
          `ipd-sweep-motor-b.svg`).\n\n\
-         | quantity | this library | seed 001 (experiment) |\n|---|---|---|\n",
+         | quantity | this library | Khlaief, Boussak, Gossa (2012) (experiment) |\n|---|---|---|\n",
     );
     s.push_str(&format!(
         "| Fig. 6 (800 r/min, rated load): max position error after 0.3 s | {:.3} rad | ≤ 0.5 rad in transients |\n",

@@ -1,4 +1,4 @@
-//! Seed 000 on motor A: figures 1–4 of the paper (`cargo xtask figures`) and the accuracy
+//! Solsona, Valla, Muravchik (2000) on motor A: figures 1–4 of the paper (`cargo xtask figures`) and the accuracy
 //! table of the three estimators (`cargo xtask perf`).
 
 use anyhow::Result;
@@ -335,13 +335,13 @@ pub fn section() -> String {
     );
     let (ps, [pn, pa, pm]) = run_all(&prof, 6.0, 1000.0);
     let mut md = String::from(
-        "## Seed 000 estimators on motor A\n\n\
+        "## Solsona, Valla, Muravchik (2000) estimators on motor A\n\n\
          Motor A, 20 kHz, g = 1000, open loop on the torque-consistent trajectories of \
-         scenarios.md (point samples; the estimators see the trapezoid mean of the voltage). \
+         motor A (point samples; the estimators see the trapezoid mean of the voltage). \
          \"Fixed\" is `pmsm-core`, \"f64\" the same discrete algorithm in float64 \
          (`tests/support/observers.rs`). Regenerate the figures with `cargo xtask figures` \
          (written to `docs/figures/`).\n\n\
-         | estimator | 120 rad/s, fixed: angle, speed | 120 rad/s, f64 | paper / equations.md | 3 → 120 → 3 rad/s, fixed: max angle error after 50 ms |\n\
+         | estimator | 120 rad/s, fixed: angle, speed | 120 rad/s, f64 | paper | 3 → 120 → 3 rad/s, fixed: max angle error after 50 ms |\n\
          |---|---|---|---|---|\n",
     );
     for (k, name) in ["NLO", "AO", "MRAS"].iter().enumerate() {
@@ -376,15 +376,14 @@ pub fn section() -> String {
         shifted(&ao_l) - shifted(&ao),
     );
     md.push_str(&format!(
-        "\nMid-ramp (1.3 s, 92 rad/s²) speed error: MRAS {:.1} % (equations.md: about −13 % \
-         in its ramp), NLO {:.4} %, AO {:.2} %.\n\n\
-         Parameter sensitivity (seed 000 text): reproduced, with one exception. Similar sensitivity \
+        "\nMid-ramp (1.3 s, 92 rad/s²) speed error: MRAS {:.1} %, NLO {:.4} %, AO {:.2} %.\n\n\
+         Parameter sensitivity (Solsona, Valla, Muravchik (2000) text): reproduced, with one exception. Similar sensitivity \
          to R, NLO errors below the AO's, the AO insensitive to B and J and the NLO only slightly, \
          K_E moving both speed estimates: yes. \"AO more sensitive to L\": not with the \
-         equations.md observers, where an error in L enters both through the same measured EMF \
+         observers of docs/solsona2000.md, where an error in L enters both through the same measured EMF \
          (`L di/dt`) and moves both angle estimates by the same amount (at 120 rad/s, L 30 % high: \
          NLO {dn:+.3}°, AO {da:+.3}°). The MRAS angle is the angle of its adjustable model, which \
-         follows the AO's EMF and inherits its lag. `cargo test -p pmsm-tests --test seed000 -- --nocapture` prints the table.\n\n",
+         follows the AO's EMF and inherits its lag. `cargo test -p pmsm-tests --test emf_observers_motor_a -- --nocapture` prints the table.\n\n",
         100.0 * (pm[k].omega_rad_s - w) / w,
         100.0 * (pn[k].omega_rad_s - w) / w,
         100.0 * (pa[k].omega_rad_s - w) / w,

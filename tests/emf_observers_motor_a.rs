@@ -1,5 +1,5 @@
-//! Seed 000 (Solsona, Valla, Muravchik 2000): the NLO, the AO and Tomita's MRAS on motor A,
-//! scenarios.md items 1–5, each a test with numeric bounds. All in fixed point at 20 kHz, on
+//! Solsona, Valla, Muravchik (2000): the NLO, the AO and Tomita's MRAS on motor A,
+//! the paper's experiments (Fig. 1–4 and its text on parameter errors), each a test with numeric bounds. All in fixed point at 20 kHz, on
 //! the torque-consistent prescribed trajectories of `pmsm_tests::trajectory`.
 
 use pmsm_core::MotorParams;
@@ -64,10 +64,10 @@ fn steady(
     (mean(&e, from, |x| x.0), mean(&e, from, |x| x.1) / w.abs())
 }
 
-/// Item 1 (Fig. 1): constant speed, several initial conditions. The AO converges to eq. 13–14
+/// Fig. 1: constant speed, several initial conditions. The AO converges to eq. 13–14
 /// (within 3 % and 8 %), the NLO to zero, the MRAS to zero speed error.
 #[test]
-fn item1_constant_speed() {
+fn constant_speed_convergence() {
     let m = motor_a();
     for w_m in [120.0, 60.0, 12.0] {
         for theta0 in [0.3, 2.0, -2.9] {
@@ -116,7 +116,7 @@ fn item1_constant_speed() {
     }
 }
 
-/// NLO at rated speed in steady state: ≤ 0.05° and ≤ 0.1 % (the issue's bound; the float
+/// NLO at rated speed in steady state: ≤ 0.05° and ≤ 0.1 % (the required bound; the float
 /// reference reaches 0.004° and 0.02 %).
 #[test]
 fn nlo_rated_speed_steady_state() {
@@ -134,11 +134,11 @@ fn nlo_rated_speed_steady_state() {
     assert!(angle <= 0.05 && speed <= 1e-3);
 }
 
-/// Item 2 (Fig. 2): 3 → 120 → 3 rad/s. The NLO is indistinguishable from the motor (≤ 0.25°
+/// Fig. 2: 3 → 120 → 3 rad/s. The NLO is indistinguishable from the motor (≤ 0.25°
 /// everywhere after convergence); the MRAS lags while accelerating; the AO's error grows with
 /// speed.
 #[test]
-fn item2_speed_profile() {
+fn speed_profile_3_to_120_rad_s() {
     let m = motor_a();
     let profile = Profile::new(&[(0.3, 3.0), (2.3, 120.0), (3.3, 120.0), (5.3, 3.0)]);
     let tr = Trajectory::new(m, profile.clone());
@@ -193,10 +193,10 @@ fn wrong_sign(s: &[Sample], est: &[Est], p: f64) -> (usize, usize) {
     (wrong, n)
 }
 
-/// Item 3 (Fig. 3): 5 → −5 rad/s in 5 s. The AO and the NLO keep the right speed sign wherever
+/// Fig. 3: 5 → −5 rad/s in 5 s. The AO and the NLO keep the right speed sign wherever
 /// |ω_m| > 1 rad/s; continued to −120 rad/s, they follow while the MRAS fails.
 #[test]
-fn item3_reversal() {
+fn slow_reversal_keeps_the_speed_sign() {
     let m = motor_a();
     let tr = Trajectory::new(m, Profile::new(&[(0.5, 5.0), (5.5, -5.0)]));
     for kind in [Kind::Nlo, Kind::Ao] {
@@ -220,7 +220,7 @@ fn item3_reversal() {
         }
     }
     // The MRAS struggles through the reversal: its speed estimate spikes where ω̂_AO → 0
-    // (seed 000: "any difference between both EMF estimates when ω̂_AO tends to zero will
+    // (Solsona, Valla, Muravchik (2000): "any difference between both EMF estimates when ω̂_AO tends to zero will
     // result in a very high value of the estimated speed").
     let rms = |kind| {
         let (s, est) = run(kind, &m, 1000.0, &tr, 6.5);
@@ -275,11 +275,11 @@ fn ripple(kind: Kind, g: f64, tr: &Trajectory, seconds: f64, tail_s: f64) -> f64
     (hi - lo) / 360.0
 }
 
-/// Item 4 (Fig. 4): 4.2 % 5th and 2.5 % 7th EMF harmonics at nominal speed: ripple in all
+/// Fig. 4: 4.2 % 5th and 2.5 % 7th EMF harmonics at nominal speed: ripple in all
 /// three; with g = 200 the ripple shrinks, the NLO converges more slowly, the AO's
 /// steady-state error grows and the MRAS transient is violent.
 #[test]
-fn item4_emf_harmonics() {
+fn emf_harmonics_ripple_falls_with_the_gain() {
     let mut tr = Trajectory::new(motor_a(), Profile::constant(120.0));
     tr.h5 = 0.042;
     tr.h7 = 0.025;
@@ -327,12 +327,12 @@ fn item4_emf_harmonics() {
     assert!(mras > 1.5 * nlo);
 }
 
-/// Item 5 (text, from their ref. 10): parameter errors. Similar sensitivity to R; the AO more
+/// text, from their ref. 10: parameter errors. Similar sensitivity to R; the AO more
 /// sensitive to L; the NLO slightly sensitive to K_E (ψ), B and J, the AO insensitive to those;
 /// NLO errors below the AO's in every case. Angle errors in steady state at 120 rad/s and over
 /// the 3 → 120 profile.
 #[test]
-fn item5_parameter_errors() {
+fn parameter_error_sensitivity() {
     let m = motor_a();
     let tr = Trajectory::new(m, Profile::new(&[(0.2, 3.0), (1.2, 120.0)]));
     type Spoil = fn(&mut MotorParams);
@@ -391,7 +391,7 @@ fn item5_parameter_errors() {
     }
     // L: the error enters both through the same measured EMF (`L di/dt`), and both angle
     // estimates move by the same amount here: the paper's "AO more sensitive to L" is not
-    // reproduced by the equations.md observers (see docs/PERFORMANCE.md). The NLO's error
+    // reproduced by the observers of docs/solsona2000.md (see docs/PERFORMANCE.md). The NLO's error
     // stays far below the AO's (asserted above).
     for s in &shift[2..4] {
         assert!((s.0 - s.1).abs() < 0.1 * s.0, "L: AO {} NLO {}", s.0, s.1);

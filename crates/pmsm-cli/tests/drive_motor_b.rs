@@ -1,5 +1,5 @@
-//! Seed 001 (Khlaief, Boussak, Gossa 2012): the sensorless drive on motor B, scenarios.md items
-//! 1–4, and motor A driven by the NLO from standstill; each a test with numeric bounds, run
+//! Khlaief, Boussak, Gossa (2012): the sensorless drive on motor B, the paper's experiments
+//! (Fig. 6, 7 and §3), and motor A driven by the NLO from standstill; each a test with numeric bounds, run
 //! through `pmsm simulate`'s own code on the shipped scenario files and variants of them.
 
 use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, window};
@@ -23,7 +23,7 @@ fn scenario(name: &str, edits: &[(&str, &str)]) -> Scenario {
         text = text.replace(from, to);
     }
     let path = std::env::temp_dir().join(format!(
-        "pmsm-seed001-{}-{}.toml",
+        "pmsm-drive-motor-b-{}-{}.toml",
         std::process::id(),
         text.len()
     ));
@@ -49,7 +49,7 @@ fn no_fault(run: &Run) {
 /// rated load applied and removed. Bounds of the issue: position error ≤ 0.5 rad after 0.3 s,
 /// ≤ 0.08 rad rms and speed within 2 % in steady state.
 #[test]
-fn item2_800_rpm_with_rated_load_from_several_angles() {
+fn rated_load_at_800_rpm_from_several_angles() {
     for theta in [137.0, 12.0, -100.0, 250.0] {
         let sc = scenario(
             "b-800rpm-load.toml",
@@ -75,10 +75,10 @@ fn item2_800_rpm_with_rated_load_from_several_angles() {
     }
 }
 
-/// Item 3 (Fig. 7): 800 → −800 r/min through zero under rated load. Position error ≤ 0.5 rad
+/// Fig. 7: 800 → −800 r/min through zero under rated load. Position error ≤ 0.5 rad
 /// in transients, ≤ 0.08 rad rms in steady state; i_d held at zero.
 #[test]
-fn item3_reversal_under_load() {
+fn reversal_800_to_minus_800_rpm_under_load() {
     let run = run_scenario(&scenario("b-reversal-load.toml", &[])).unwrap();
     no_fault(&run);
     let after = max_angle(&window(&run.rows, 0.3, 5.0));
@@ -124,7 +124,7 @@ fn reversal_through_zero_under_a_constant_load() {
     assert!(rms_angle(&steady) <= 0.08 && speed_err(&steady) <= 0.02);
 }
 
-/// The IP speed loop (seed 001 §7): a speed step overshoots by at most 2 %, i_d held at 0.
+/// The IP speed loop (Khlaief, Boussak, Gossa (2012) §7): a speed step overshoots by at most 2 %, i_d held at 0.
 /// Under half the rated load: at no load the phase currents hover near zero, where the
 /// residue of the dead-time compensation jitters the estimate by a few r/min, which would be
 /// counted as overshoot of a 200 r/min step.
@@ -163,10 +163,10 @@ fn ip_speed_step_has_no_overshoot() {
     assert!(speed_err(&settled) < 0.02);
 }
 
-/// Item 4 (§3): dead-time compensation at least halves the steady position error at 150 r/min
+/// §3: dead-time compensation at least halves the steady position error at 150 r/min
 /// with rated load.
 #[test]
-fn item4_deadtime_compensation_at_150_rpm() {
+fn deadtime_compensation_at_150_rpm() {
     let error = |compensation: &str| {
         let sc = scenario(
             "b-800rpm-load.toml",
