@@ -90,8 +90,13 @@
 //! squared field speed `F` and its window sums are `i128`; every sum saturates. The angle
 //! generator is a `u64` phase in 2⁻¹⁶ angle counts.
 
+mod finish;
 mod fit;
+mod inductance;
 mod machine;
+mod poll;
+mod resistance;
+mod spin;
 #[cfg(test)]
 mod tests;
 
