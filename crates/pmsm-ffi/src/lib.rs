@@ -12,8 +12,8 @@
 //!
 //! Modules: `types` (the C types), `handle` (the opaque drive and the pointer checks), `drive`
 //! (init, commands, step), `read` (state, estimate, telemetry, initial position, fault
-//! record), `scale` (ADC conversions), `image` (drives built on the host, loaded without the design code),
-//! `convert` (C configuration and codes to and from the core). The cargo features
+//! record), `scale` (ADC conversions), `image` (drives built on the host, loaded without the
+//! design code), `convert` (C configuration and codes to and from the core). The cargo features
 //! `mras-current`, `nlo`, `ao`, `mras-emf` (default: all) select the estimators built in.
 #![no_std]
 #![allow(non_camel_case_types)]
