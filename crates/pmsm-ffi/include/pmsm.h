@@ -845,7 +845,8 @@ pmsm_status_t pmsm_drive_init(void *storage,
 pmsm_status_t pmsm_start(pmsm_drive_t *drive);
 
 /**
- * Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault).
+ * Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault; the fault
+ * record stays frozen until the next `pmsm_start`).
  *
  * # Safety
  * As `pmsm_start`.

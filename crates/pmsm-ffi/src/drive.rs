@@ -180,7 +180,8 @@ pub unsafe extern "C" fn pmsm_start(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     }))
 }
 
-/// Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault).
+/// Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault; the fault
+/// record stays frozen until the next `pmsm_start`).
 ///
 /// # Safety
 /// As `pmsm_start`.
