@@ -3,13 +3,13 @@
 
 use crate::convert::{self, CBuf};
 use crate::handle::pmsm_drive_t;
-use crate::handle::{MARK, aligned, arg, drive, put, status};
+use crate::handle::{DriveCore, MARK, aligned, arg, drive, emplace, put, status};
 use crate::types::*;
 use core::ffi::{c_char, c_void};
 use core::mem::{align_of, size_of};
 use pmsm_core::Abc;
 use pmsm_core::Pu;
-use pmsm_core::{Drive, DriveInput};
+use pmsm_core::{Drive, DriveInput, DriveState};
 
 /// Bytes of storage a drive needs (`<= PMSM_STORAGE_SIZE`).
 #[unsafe(no_mangle)]
@@ -150,21 +150,21 @@ pub unsafe extern "C" fn pmsm_drive_init(
         Ok(b) => b,
         Err(r) => return r.status(),
     };
-    let value = pmsm_drive_t {
+    let value = DriveCore {
         mark: MARK,
         period: built.period,
         pole_pairs: built.pole_pairs,
         drive: Drive::new(built.config),
     };
     // SAFETY: `p` is non-null, aligned and has room for a `pmsm_drive_t` (checked above),
-    // writable per the contract; `put` writes without reading the old contents.
-    let _ = unsafe { put(p, value) };
+    // writable and not otherwise in use per the contract.
+    unsafe { emplace(p, value) };
     // SAFETY: `drive` is non-null and aligned (checked), writable per the contract.
     unsafe { put(drive, p) }
 }
 
 /// Starts the drive from `PMSM_STATE_IDLE` with the configured start-up (IPD, alignment or
-/// known angle); does nothing in other states.
+/// known angle) and empties the fault recorder; does nothing in other states.
 ///
 /// # Safety
 /// `drive` is NULL or a handle from `pmsm_drive_init` (or storage of `pmsm_drive_size()`
@@ -172,28 +172,39 @@ pub unsafe extern "C" fn pmsm_drive_init(
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_start(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.drive.start()))
+    status(unsafe { self::drive(drive) }.map(|d| {
+        if d.core.drive.state() == DriveState::Idle {
+            d.recorder.rearm();
+        }
+        d.core.drive.start()
+    }))
 }
 
-/// Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault).
+/// Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault; the fault
+/// record stays frozen until the next `pmsm_start`).
 ///
 /// # Safety
 /// As `pmsm_start`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_stop(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.drive.stop()))
+    status(unsafe { self::drive(drive) }.map(|d| d.core.drive.stop()))
 }
 
-/// Leaves `PMSM_STATE_FAULT` for `PMSM_STATE_IDLE` (then `pmsm_start` again); does nothing in
-/// other states.
+/// Leaves `PMSM_STATE_FAULT` for `PMSM_STATE_IDLE` (then `pmsm_start` again) and empties the
+/// fault recorder (read it first); does nothing in other states.
 ///
 /// # Safety
 /// As `pmsm_start`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_clear_fault(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.drive.clear_fault()))
+    status(unsafe { self::drive(drive) }.map(|d| {
+        if matches!(d.core.drive.state(), DriveState::Fault(_)) {
+            d.recorder.rearm();
+        }
+        d.core.drive.clear_fault()
+    }))
 }
 
 /// Reports that a control step did not finish within its period (for example: the PWM
@@ -206,7 +217,7 @@ pub unsafe extern "C" fn pmsm_clear_fault(drive: *mut pmsm_drive_t) -> pmsm_stat
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_report_overrun(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.drive.report_overrun()))
+    status(unsafe { self::drive(drive) }.map(|d| d.core.drive.report_overrun()))
 }
 
 /// Sets the speed reference: signed electrical speed, Q8.24 per unit of `omega_b`
@@ -217,13 +228,14 @@ pub unsafe extern "C" fn pmsm_report_overrun(drive: *mut pmsm_drive_t) -> pmsm_s
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_set_speed_ref(drive: *mut pmsm_drive_t, omega: i32) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.drive.set_speed_ref(Pu::from_bits(omega))))
+    status(unsafe { self::drive(drive) }.map(|d| d.core.drive.set_speed_ref(Pu::from_bits(omega))))
 }
 
 /// One control sample, integer arithmetic only: from the phase currents and the bus voltage
 /// sampled at the PWM centre (`input`, Q8.24 pu) to the duties of the next period (`output`).
 /// Call it once per sample period (`pmsm_config_t.sample_hz`) from the ADC/PWM interrupt. The
-/// drive is not stepped when a pointer is NULL or invalid.
+/// drive is not stepped when a pointer is NULL or invalid. Also records the sample in the
+/// drive's fault recorder (`pmsm_fault_record_get`) until a fault freezes it.
 ///
 /// # Safety
 /// `drive` as `pmsm_start`; `input` NULL or pointing to a `pmsm_input_t`; `output` NULL or
@@ -250,15 +262,18 @@ pub unsafe extern "C" fn pmsm_step(
     if !aligned(output) {
         return pmsm_status_t::PMSM_ERR_MISALIGNED;
     }
-    let out = d.drive.step(&DriveInput {
+    let input = DriveInput {
         i_abc: Abc {
             a: Pu::from_bits(i.i_a),
             b: Pu::from_bits(i.i_b),
             c: Pu::from_bits(i.i_c),
         },
         vdc: Pu::from_bits(i.vdc),
-    });
-    let cmp = out.duties.to_compare(d.period);
+    };
+    let out = d.core.drive.step(&input);
+    // Here, not left to the caller, so that a C firmware always has the record of a fault.
+    d.recorder.record(&d.core.drive, &input);
+    let cmp = out.duties.to_compare(d.core.period);
     let value = pmsm_output_t {
         duty: [
             out.duties.a.to_bits(),
@@ -267,7 +282,7 @@ pub unsafe extern "C" fn pmsm_step(
         ],
         compare: cmp,
         pwm_on: u8::from(out.pwm_on),
-        state: convert::state_code(&d.drive.state()) as u8,
+        state: convert::state_code(&d.core.drive.state()) as u8,
     };
     // SAFETY: non-null and aligned (checked), writable per the contract.
     unsafe { put(output, value) }

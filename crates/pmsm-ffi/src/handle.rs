@@ -6,13 +6,24 @@
 //! initialised is refused, not used.
 #![allow(unsafe_code)]
 
-use crate::types::{PMSM_STORAGE_SIZE, PMSM_STORAGE_WORDS, pmsm_status_t};
+use crate::types::{PMSM_FAULT_RECORD_DEPTH, PMSM_STORAGE_SIZE, PMSM_STORAGE_WORDS, pmsm_status_t};
 use core::mem::{align_of, size_of};
-use pmsm_core::Drive;
+use pmsm_core::{Drive, FaultRecorder};
 
-/// A drive, in caller-provided storage. Opaque to C.
+/// A drive and its fault recorder, in caller-provided storage. Opaque to C.
 #[derive(Debug)]
 pub struct pmsm_drive_t {
+    /// What a drive image holds (`src/image.rs`).
+    pub(crate) core: DriveCore,
+    /// Fed by `pmsm_step`; not in the image (it is run-time history, and its ring index is a
+    /// `usize`, laid out differently on the host and the target).
+    pub(crate) recorder: FaultRecorder<PMSM_FAULT_RECORD_DEPTH>,
+}
+
+/// The imaged part of a drive: the handle's mark, the timer period, the pole pairs (for the
+/// speed scale) and the core drive.
+#[derive(Debug)]
+pub(crate) struct DriveCore {
     pub(crate) mark: u32,
     pub(crate) period: u16,
     pub(crate) pole_pairs: u32,
@@ -80,13 +91,27 @@ pub(crate) unsafe fn drive<'a>(
     // SAFETY: non-null, aligned, readable (contract); the mark is read through a raw place
     // before any reference to the drive exists, so uninitialised storage is only read as a
     // `u32` (any bit pattern is a valid `u32`).
-    let mark = unsafe { core::ptr::addr_of!((*d).mark).read_volatile() };
+    let mark = unsafe { core::ptr::addr_of!((*d).core.mark).read_volatile() };
     if mark != MARK {
         return Err(pmsm_status_t::PMSM_ERR_NOT_INITIALIZED);
     }
     // SAFETY: the mark is only written by `pmsm_drive_init` together with a whole valid
     // `pmsm_drive_t`; exclusive access per the contract.
     Ok(unsafe { &mut *d })
+}
+
+/// Writes a new drive (`core`, and an empty recorder) into `p`, field by field (no copy of
+/// the whole on the stack).
+///
+/// # Safety
+/// `p` is non-null, aligned and points to `size_of::<pmsm_drive_t>()` writable bytes not
+/// otherwise in use.
+pub(crate) unsafe fn emplace(p: *mut pmsm_drive_t, c: DriveCore) {
+    // SAFETY: forwarded contract; `write` does not read or drop the old contents.
+    unsafe {
+        core::ptr::addr_of_mut!((*p).core).write(c);
+        core::ptr::addr_of_mut!((*p).recorder).write(FaultRecorder::new());
+    }
 }
 
 pub(crate) fn status(r: Result<(), pmsm_status_t>) -> pmsm_status_t {

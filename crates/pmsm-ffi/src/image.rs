@@ -6,8 +6,8 @@
 //! motor can instead build the drive on the host with the same library, save its image
 //! (`pmsm_drive_image`), and link only `pmsm_drive_init_image` and the per-sample path.
 //!
-//! The image is the drive's memory as the library lays it out, behind a header: magic, the
-//! build id (a hash of the pmsm-core and pmsm-ffi sources, the compiler version and the
+//! The image is the drive's memory as the library lays it out (without the fault recorder,
+//! which starts empty), behind a header: magic, the build id (a hash of the pmsm-core and pmsm-ffi sources, the compiler version and the
 //! estimator features, from `build.rs`), the payload's size and its CRC-32. The target
 //! accepts only an image of the same build and size, intact; that the host and target
 //! libraries then lay the drive out alike (no pointer or `usize` in it, 8-byte alignment of
@@ -15,7 +15,7 @@
 //! for bit on a Cortex-M4.
 #![allow(unsafe_code)]
 
-use crate::handle::{MARK, aligned, drive, pmsm_drive_t, put};
+use crate::handle::{DriveCore, MARK, aligned, drive, pmsm_drive_t, put};
 use crate::types::pmsm_status_t;
 use core::ffi::c_void;
 use core::mem::{offset_of, size_of};
@@ -61,11 +61,11 @@ fn word(bytes: &[u8], offset: usize) -> u32 {
     u32::from_le_bytes(w)
 }
 
-/// Bytes of the image of a drive of this library (`PMSM_IMAGE_HEADER_SIZE +
-/// pmsm_drive_size()`).
+/// Bytes of the image of a drive of this library (`PMSM_IMAGE_HEADER_SIZE` and the drive
+/// without its fault recorder).
 #[unsafe(no_mangle)]
 pub extern "C" fn pmsm_image_size() -> usize {
-    PMSM_IMAGE_HEADER_SIZE + size_of::<pmsm_drive_t>()
+    PMSM_IMAGE_HEADER_SIZE + size_of::<DriveCore>()
 }
 
 /// Writes the image of `drive` as it is now (call it right after `pmsm_drive_init`, with the
@@ -90,17 +90,17 @@ pub unsafe extern "C" fn pmsm_drive_image(
     if image.is_null() || len < size {
         return size;
     }
-    let d: *const pmsm_drive_t = d;
-    // SAFETY: `d` is a valid drive of `size_of::<pmsm_drive_t>()` bytes. Its padding bytes
+    let d: *const DriveCore = &d.core;
+    // SAFETY: `d` is a valid `DriveCore` of `size_of::<DriveCore>()` bytes. Its padding bytes
     // are copied as they are; the CRC covers them as written, and the target overwrites
     // them with its own values at the first write of each field.
-    let payload = unsafe { core::slice::from_raw_parts(d.cast::<u8>(), size_of::<pmsm_drive_t>()) };
+    let payload = unsafe { core::slice::from_raw_parts(d.cast::<u8>(), size_of::<DriveCore>()) };
     // SAFETY: `image` is non-null with `len >= size` writable bytes (contract, checked).
     let out = unsafe { core::slice::from_raw_parts_mut(image.cast::<u8>(), size) };
     let header = [
         PMSM_IMAGE_MAGIC,
         build_id(),
-        size_of::<pmsm_drive_t>() as u32,
+        size_of::<DriveCore>() as u32,
         crc32(payload),
     ];
     let (head, body) = out.split_at_mut(PMSM_IMAGE_HEADER_SIZE);
@@ -148,18 +148,20 @@ pub unsafe extern "C" fn pmsm_drive_init_image(
     // Both ends are little-endian ARM or x86: the mark reads as written.
     let valid = word(head, 0) == PMSM_IMAGE_MAGIC
         && word(head, 4) == build_id()
-        && word(head, 8) as usize == size_of::<pmsm_drive_t>()
+        && word(head, 8) as usize == size_of::<DriveCore>()
         && word(head, 12) == crc32(payload)
-        && word(payload, offset_of!(pmsm_drive_t, mark)) == MARK;
+        && word(payload, offset_of!(DriveCore, mark)) == MARK;
     if !valid {
         return pmsm_status_t::PMSM_ERR_IMAGE;
     }
-    // SAFETY: the payload is the bytes of a valid `pmsm_drive_t` of this build (checked
-    // above: same build, size and contents as written by `pmsm_drive_image`); the storage
-    // has room for it and is aligned (checked), writable per the contract, and does not
-    // overlap the image (the image is read-only data).
+    // SAFETY: the payload is the bytes of a valid `DriveCore` of this build (checked above:
+    // same build, size and contents as written by `pmsm_drive_image`); the storage has room
+    // for a `pmsm_drive_t` and is aligned (checked), writable per the contract, and does not
+    // overlap the image (the image is read-only data). The recorder is written as new.
     unsafe {
-        core::ptr::copy_nonoverlapping(payload.as_ptr(), p.cast::<u8>(), payload.len());
+        let dst = core::ptr::addr_of_mut!((*p).core);
+        core::ptr::copy_nonoverlapping(payload.as_ptr(), dst.cast::<u8>(), payload.len());
+        core::ptr::addr_of_mut!((*p).recorder).write(pmsm_core::FaultRecorder::new());
     }
     // SAFETY: `drive` is non-null and aligned (checked), writable per the contract.
     unsafe { put(drive, p) }

@@ -11,9 +11,9 @@
 //! fractions of the period (`2^30` = 1) and as timer compare values.
 //!
 //! Modules: `types` (the C types), `handle` (the opaque drive and the pointer checks), `drive`
-//! (init, commands, step), `read` (state, estimate, telemetry, initial position), `scale`
-//! (ADC conversions), `image` (drives built on the host, loaded without the design code),
-//! `convert` (C configuration and codes to and from the core). The cargo features
+//! (init, commands, step), `read` (state, estimate, telemetry, initial position, fault
+//! record), `scale` (ADC conversions), `image` (drives built on the host, loaded without the
+//! design code), `convert` (C configuration and codes to and from the core). The cargo features
 //! `mras-current`, `nlo`, `ao`, `mras-emf` (default: all) select the estimators built in.
 #![no_std]
 #![allow(non_camel_case_types)]

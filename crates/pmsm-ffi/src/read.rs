@@ -1,4 +1,5 @@
-//! Read access to a drive: state and fault, estimate, telemetry, initial position, bases.
+//! Read access to a drive: state and fault, estimate, telemetry, initial position, bases,
+//! the fault record.
 //! Integer only except `pmsm_get_bases`; none of them changes the drive.
 #![allow(unsafe_code)]
 
@@ -22,7 +23,7 @@ pub unsafe extern "C" fn pmsm_get_state(
         Ok(d) => d,
         Err(e) => return e,
     };
-    let s = d.drive.state();
+    let s = d.core.drive.state();
     let (fault, value) = convert::fault_code(&s);
     // SAFETY: forwarded contract.
     unsafe {
@@ -51,7 +52,7 @@ pub unsafe extern "C" fn pmsm_get_estimate(
         Ok(d) => d,
         Err(e) => return e,
     };
-    let e = d.drive.telemetry().estimate;
+    let e = d.core.drive.telemetry().estimate;
     // SAFETY: forwarded contract.
     unsafe {
         put(
@@ -78,7 +79,7 @@ pub unsafe extern "C" fn pmsm_get_bases(
         Ok(d) => d,
         Err(e) => return e,
     };
-    let b = d.drive.config().base;
+    let b = d.core.drive.config().base;
     // SAFETY: forwarded contract.
     unsafe {
         put(
@@ -108,7 +109,7 @@ pub unsafe extern "C" fn pmsm_get_telemetry(
         Ok(d) => d,
         Err(e) => return e,
     };
-    let t = d.drive.telemetry();
+    let t = d.core.drive.telemetry();
     let value = pmsm_telemetry_t {
         theta: t.theta.0,
         theta_est: t.estimate.theta.0,
@@ -119,7 +120,7 @@ pub unsafe extern "C" fn pmsm_get_telemetry(
         i_q_ref: t.i_ref.q.to_bits(),
         v_alpha: t.v.alpha.to_bits(),
         v_beta: t.v.beta.to_bits(),
-        health: d.drive.health().to_bits(),
+        health: d.core.drive.health().to_bits(),
         saturated: u32::from(t.saturated),
     };
     // SAFETY: forwarded contract.
@@ -142,13 +143,13 @@ pub unsafe extern "C" fn pmsm_get_ipd(
         Ok(d) => d,
         Err(e) => return e,
     };
-    let (fault, fault_value) = convert::ipd_fault(&d.drive.state());
+    let (fault, fault_value) = convert::ipd_fault(&d.core.drive.state());
     let mut value = pmsm_ipd_t {
         fault,
         fault_value,
         ..pmsm_ipd_t::default()
     };
-    if let Some(r) = d.drive.ipd_result() {
+    if let Some(r) = d.core.drive.ipd_result() {
         value.found = 1;
         value.theta = r.theta.0;
         value.theta_mod_pi = r.theta_mod_pi.0;
@@ -194,4 +195,55 @@ pub extern "C" fn pmsm_ipd_fault_name(fault: u32) -> *const c_char {
         _ => c"unknown",
     };
     s.as_ptr()
+}
+
+/// Number of samples in the drive's fault recorder, 0 to `PMSM_FAULT_RECORD_DEPTH` (0 for a
+/// NULL or invalid handle). `pmsm_step` records every sample until the drive faults; the
+/// record then stays frozen, ending with the sample that tripped, until `pmsm_clear_fault`
+/// or the next `pmsm_start` from idle empties it. Integer only, ISR-safe.
+///
+/// # Safety
+/// `drive` as `pmsm_start`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_fault_record_len(drive: *mut pmsm_drive_t) -> u32 {
+    // SAFETY: forwarded contract.
+    match unsafe { self::drive(drive) } {
+        Ok(d) => d.recorder.len() as u32,
+        Err(_) => 0,
+    }
+}
+
+/// Sample `index` of the fault recorder, oldest first (0 to `pmsm_fault_record_len() - 1`;
+/// the last is the newest, once frozen the one at which the drive tripped). Returns
+/// `PMSM_ERR_INVALID_ARGUMENT` for an index out of that range, writing nothing. Integer only.
+///
+/// # Safety
+/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_fault_sample_t`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_fault_record_get(
+    drive: *mut pmsm_drive_t,
+    index: u32,
+    out: *mut pmsm_fault_sample_t,
+) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    let d = match unsafe { self::drive(drive) } {
+        Ok(d) => d,
+        Err(e) => return e,
+    };
+    let Some(s) = d.recorder.sample(index as usize) else {
+        return pmsm_status_t::PMSM_ERR_INVALID_ARGUMENT;
+    };
+    let value = pmsm_fault_sample_t {
+        i_a: s.i_abc.a.to_bits(),
+        i_b: s.i_abc.b.to_bits(),
+        i_c: s.i_abc.c.to_bits(),
+        vdc: s.vdc.to_bits(),
+        v_alpha: s.v.alpha.to_bits(),
+        v_beta: s.v.beta.to_bits(),
+        theta_est: s.estimate.theta.0,
+        omega_est: s.estimate.omega.to_bits(),
+        state: u32::from(s.state),
+    };
+    // SAFETY: forwarded contract.
+    unsafe { put(out, value) }
 }

@@ -66,7 +66,7 @@ pub unsafe extern "C" fn pmsm_scale_current(
     // SAFETY: forwarded contract.
     unsafe {
         scale_out(drive, out, |d| {
-            amps_per_unit / d.drive.config().base.current_a
+            amps_per_unit / d.core.drive.config().base.current_a
         })
     }
 }
@@ -85,7 +85,7 @@ pub unsafe extern "C" fn pmsm_scale_voltage(
     // SAFETY: forwarded contract.
     unsafe {
         scale_out(drive, out, |d| {
-            volts_per_unit / d.drive.config().base.voltage_v
+            volts_per_unit / d.core.drive.config().base.voltage_v
         })
     }
 }
@@ -104,8 +104,8 @@ pub unsafe extern "C" fn pmsm_scale_speed(
     // SAFETY: forwarded contract.
     unsafe {
         scale_out(drive, out, |d| {
-            rpm_per_unit * core::f64::consts::TAU / 60.0 * d.pole_pairs as f64
-                / d.drive.config().base.omega_e_rad_s
+            rpm_per_unit * core::f64::consts::TAU / 60.0 * d.core.pole_pairs as f64
+                / d.core.drive.config().base.omega_e_rad_s
         })
     }
 }

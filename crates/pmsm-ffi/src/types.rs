@@ -369,12 +369,51 @@ pub struct pmsm_scale_t {
     pub shift: u32,
 }
 
-/// Size of static storage that holds a drive on every supported target, bytes. The C
-/// firmware can declare `static pmsm_storage_t storage;` (`sizeof` = this, aligned to 8).
-pub const PMSM_STORAGE_SIZE: usize = 4096;
+/// Depth of the fault recorder every drive carries, samples (`pmsm_fault_record_get`).
+///
+/// 64 samples: 4.6 ms at 14 kHz, 6.4 ms at 10 kHz: the trip and the few milliseconds before
+/// it, several current-loop rise times, enough to tell a current spike from a loop gone
+/// unstable or an estimate running away. A sample is 44 bytes, so the recorder takes 2.8 KiB
+/// beside the drive's 2.2 KiB in `PMSM_STORAGE_SIZE`; one electrical period at low speed (a
+/// thousand samples and more) would not fit the RAM of the small parts this library targets.
+pub const PMSM_FAULT_RECORD_DEPTH: usize = 64;
+
+/// One sample of the fault recorder (`pmsm_fault_record_get`): what a `pmsm_step` was given
+/// and what it computed, as the drive's own integer words (a record replays bit for bit
+/// through the same fixed-point code on the host).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct pmsm_fault_sample_t {
+    /// Phase current a given to the step (`pmsm_input_t.i_a`), Q8.24 per unit of `I_b`.
+    pub i_a: i32,
+    /// Phase current b given to the step, Q8.24 per unit of `I_b`.
+    pub i_b: i32,
+    /// Phase current c given to the step, Q8.24 per unit of `I_b`.
+    pub i_c: i32,
+    /// Bus voltage given to the step, Q8.24 per unit of `V_b`.
+    pub vdc: i32,
+    /// Voltage the step commanded (applied over the next period), alpha (along phase a),
+    /// Q8.24 per unit of `V_b`. A step that computes none (idle, fault, and the one that
+    /// trips) leaves the last one commanded; the outputs are off then.
+    pub v_alpha: i32,
+    /// Voltage the step commanded, beta (90 degrees ahead of alpha), Q8.24 per unit of `V_b`.
+    pub v_beta: i32,
+    /// The estimator's rotor angle after the step, turn (2^32 = one electrical turn).
+    pub theta_est: i32,
+    /// The estimator's electrical speed after the step, Q8.24 per unit of `omega_b`.
+    pub omega_est: i32,
+    /// The `pmsm_state_t` after the step (`PMSM_STATE_FAULT` in the last sample of a frozen
+    /// record).
+    pub state: u32,
+}
+
+/// Size of static storage that holds a drive and its fault recorder on every supported
+/// target, bytes. The C firmware can declare `static pmsm_storage_t storage;` (`sizeof` =
+/// this, aligned to 8).
+pub const PMSM_STORAGE_SIZE: usize = 6144;
 
 /// `PMSM_STORAGE_SIZE / 8`: the `uint64_t` words of `pmsm_storage_t`.
-pub const PMSM_STORAGE_WORDS: usize = 512;
+pub const PMSM_STORAGE_WORDS: usize = 768;
 
 /// Statically allocatable storage for one drive: `static pmsm_storage_t storage;` then
 /// `pmsm_drive_init(&storage, sizeof storage, &config, &drive)`.
