@@ -3,6 +3,7 @@
 
 use crate::Angle;
 use crate::control::current::{CurrentConfig, CurrentDesign};
+use crate::control::flux::{FluxConfig, FluxDesign};
 use crate::control::speed::{SpeedConfig, SpeedDesign};
 use crate::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode};
 use crate::error::ConfigError;
@@ -122,6 +123,8 @@ pub struct DriveDesign {
     pub open_loop: OpenLoopDesign,
     /// Trip thresholds.
     pub protection: Protection,
+    /// The d-axis reference: MTPA and field weakening (docs/field-weakening.md).
+    pub flux: FluxDesign,
 }
 
 impl DriveDesign {
@@ -158,6 +161,7 @@ impl DriveDesign {
             },
             open_loop: OpenLoopDesign::default_for(motor, base),
             protection: Protection::default_for(inverter, base),
+            flux: FluxDesign::default_for(base),
         }
     }
 }
@@ -205,6 +209,9 @@ pub struct DriveConfig {
     pub(crate) open_loop: OpenLoopConfig,
     pub(crate) protection: ProtectionConfig,
     pub(crate) monitor: super::monitor::MonitorConfig,
+    pub(crate) flux: FluxConfig,
+    /// Estimated speed beyond which the drive trips on [`super::Fault::Overspeed`], per unit.
+    pub(crate) overspeed: Pu,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -362,13 +369,47 @@ impl DriveConfig {
                 vdc_min: pu_from_f64(p.vdc_min_v / base.voltage_v),
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
+            flux: FluxConfig::new(motor, &base, design.speed.current_limit_a, design.flux)?,
+            overspeed: pu_from_f64(overspeed_pu(motor, &base, &design)),
             base,
             design,
         })
+    }
+
+    /// The d-axis reference's configuration (MTPA, field weakening, maximum speed).
+    pub fn flux(&self) -> &FluxConfig {
+        &self.flux
+    }
+
+    /// Estimated speed beyond which the drive trips on [`super::Fault::Overspeed`], per unit.
+    pub fn overspeed(&self) -> Pu {
+        self.overspeed
     }
 
     /// Whether dead-time compensation is on.
     pub fn deadtime_compensation(&self) -> bool {
         self.design.deadtime.mode != DeadTimeMode::Off
     }
+}
+
+/// Times the highest controllable speed at which the drive trips on overspeed.
+pub const OVERSPEED_FACTOR: f64 = 1.15;
+
+/// The overspeed threshold, per unit: [`OVERSPEED_FACTOR`] times the highest speed at which
+/// the drive can still hold the no-load voltage within the circle at the nominal bus, i.e.
+/// with `i_d = −min(I_max, ψ/L_d)` under field weakening, `i_d = 0` without (where the EMF
+/// `ωψ` reaches `V_DC/√3`, the bus the diodes would rectify into). Never below 1.2 pu.
+fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f64 {
+    let i_max = design.speed.current_limit_a / base.current_a;
+    let ld = motor.ld_h / base.inductance_h;
+    let psi = motor.flux_wb / base.flux_wb;
+    let r = motor.rs_ohm / base.impedance_ohm;
+    let id_lim = if design.flux.field_weakening {
+        i_max.min(psi / ld)
+    } else {
+        0.0
+    };
+    let cap = crate::control::flux::SPEED_CAP_PER_BASE;
+    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, 1.0, cap);
+    (OVERSPEED_FACTOR * w).clamp(1.2, cap)
 }
