@@ -410,6 +410,6 @@ mod tests {
         );
         // Speed limit: finite here (ψ/L_d above I_max) and above base speed.
         let w = c.max_speed().to_num::<f64>();
-        assert!(w > 1.5 && w < SPEED_CAP_PER_BASE, "{w}");
+        assert!(w > 1.5 && w <= SPEED_CAP_PER_BASE, "{w}");
     }
 }
