@@ -45,7 +45,7 @@ use super::gain_in;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq};
 use crate::num::{Coef, Pu, pu_from_f64, round_shift_sat, sat_i32, wmul};
-use crate::params::{MotorParams, in_range};
+use crate::params::MotorParams;
 use crate::units::PerUnit;
 
 /// Below this relative saliency `|L_q − L_d| / L_d` a motor is treated as surface: `i_d = 0`
@@ -56,67 +56,59 @@ const SALIENCY_MIN: f64 = 0.02;
 /// characteristic current `ψ/L_d` is within the current limit (infinite in theory).
 pub const SPEED_CAP_PER_BASE: f64 = 4.0;
 
+/// [`VOLTAGE_MARGIN`] in Q1.31.
+const MARGIN_Q31: Coef<31> = Coef::from_bits((VOLTAGE_MARGIN * 2_147_483_648.0) as i32);
+/// [`K_FW`] in Q1.31.
+const K_FW_Q31: Coef<31> = Coef::from_bits((K_FW * 2_147_483_648.0) as i32);
+
 /// Pole of the MTPA and circle iterations per update (`g`): about 1.4 ms to settle at 14 kHz.
 const TRACK_POLE: f64 = 0.1;
 
-/// How the d-axis reference is made; [`FluxDesign::default_for`] gives the defaults.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Fraction `k` of the modulator's circle the field weakening holds the voltage at.
+pub const VOLTAGE_MARGIN: f64 = 0.95;
+
+/// Gain `K_fw` of the field-weakening integrator per update, `ω_fw T/2` with `T = 2 T_s` and
+/// `ω_fw = 0.02/T_s` (280 rad/s at 14 kHz, below the current loops' default 700 rad/s).
+const K_FW: f64 = 0.02;
+
+/// How the d-axis reference is made (both off by default: the paper's `i_d = 0`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FluxDesign {
     /// MTPA below base speed for interior motors (surface motors keep `i_d = 0`).
     pub mtpa: bool,
-    /// Field weakening by voltage feedback.
+    /// Field weakening by voltage feedback, and the speed reference clamped to the maximum
+    /// speed.
     pub field_weakening: bool,
-    /// Fraction `k` of the modulator's circle the field weakening holds the voltage at.
-    pub voltage_margin: f64,
-    /// Bandwidth `ω_fw` of the field-weakening loop, rad/s.
-    pub bandwidth_rad_s: f64,
 }
 
 impl FluxDesign {
-    /// MTPA and field weakening off (the paper's `i_d = 0`); margin 0.95, `ω_fw = 0.02/T_s`.
-    pub fn default_for(base: &PerUnit) -> Self {
-        Self {
-            mtpa: false,
-            field_weakening: false,
-            voltage_margin: 0.95,
-            bandwidth_rad_s: 0.02 / base.sample_s,
-        }
-    }
-
-    /// [`FluxDesign::default_for`] with MTPA and field weakening on.
-    pub fn on(base: &PerUnit) -> Self {
-        Self {
-            mtpa: true,
-            field_weakening: true,
-            ..Self::default_for(base)
-        }
-    }
+    /// MTPA and field weakening on.
+    pub const ON: Self = Self {
+        mtpa: true,
+        field_weakening: true,
+    };
 }
 
-/// Configuration of the [`FluxController`] (a few words: the micro:bit's 16 KiB hold the
-/// drive on the stack).
+/// Configuration of the [`FluxController`]: eight words, because the smallest target (the
+/// micro:bit's 16 KiB) holds the drive on its stack several times.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FluxConfig {
-    /// `2a = ψ/(L_q − L_d)`, per unit of current.
+    /// `2a = ψ/(L_q − L_d)`, per unit of current; zero without MTPA.
     two_a: Coef<20>,
     /// MTPA iteration gain `g/(2|a|)`; zero: `i_d,MTPA = 0` (surface motor or MTPA off).
     k_mtpa: Coef<24>,
-    /// `I_max²`, Q.48.
-    i_max_sq: i64,
+    /// `I_max²`, per unit (`I_max` ≤ 11).
+    i_max_sq: Pu,
     /// `g/(2 I_max)`, the circle iteration's gain.
     k_circle: Coef<24>,
     /// `I_max`.
     i_max: Pu,
-    /// `k`.
-    margin: Coef<31>,
-    /// `K_fw`; zero with field weakening off.
-    k_fw: Coef<31>,
-    /// `−I_d,lim`.
+    /// `−I_d,lim`; zero without field weakening.
     id_min: Pu,
     /// Largest speed reference accepted, per unit ([`FluxConfig::max_speed`]).
     speed_max: Pu,
-    /// Either part on.
-    enabled: bool,
+    /// Estimated speed beyond which the drive trips on overspeed, per unit.
+    pub(crate) overspeed: Pu,
 }
 
 /// `i_d` of the MTPA law for `i_q` (any sign), f64 reference: zero for equal inductances.
@@ -143,24 +135,17 @@ pub fn max_speed_f64(psi: f64, ld: f64, r: f64, id_lim: f64, v_lim: f64, cap: f6
 }
 
 impl FluxConfig {
-    /// The d-axis reference for `motor` with current limit `i_max_a` (A peak).
+    /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `overspeed_pu`
+    /// is the overspeed trip threshold.
     ///
-    /// Errors: [`ConfigError::Param`] for `flux.voltage_margin` outside `[0.5, 1]`;
-    /// [`ConfigError::Gain`] for `flux.bandwidth_rad_s` outside `(0, 0.1/T_s]` or a current
-    /// limit beyond 11 `I_b` (`I_max²` in Q8.24 for the circle).
+    /// Errors: [`ConfigError::Gain`] for a current limit beyond 11 `I_b` (`I_max²` in Q8.24).
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,
         i_max_a: f64,
         design: FluxDesign,
+        overspeed_pu: f64,
     ) -> Result<Self, ConfigError> {
-        let margin = in_range("flux.voltage_margin", design.voltage_margin, 0.5, 1.0)?;
-        let w = gain_in(
-            "flux.bandwidth_rad_s",
-            design.bandwidth_rad_s,
-            1e-9,
-            0.1 / base.sample_s,
-        )?;
         let i_max = gain_in(
             "speed.current_limit_a",
             i_max_a,
@@ -171,8 +156,8 @@ impl FluxConfig {
         let lq = motor.lq_h / base.inductance_h;
         let r = motor.rs_ohm / base.impedance_ohm;
         let psi = motor.flux_wb / base.flux_wb;
-        // Below the saliency threshold 2|a| > 50/L_d ≥ ... may leave Coef<20>: no MTPA there.
         let salient = design.mtpa && libm::fabs(lq - ld) > SALIENCY_MIN * ld;
+        // 2|a| beyond Coef<20>'s 2048 (saliency below 1/1000 per unit): no MTPA either.
         let two_a = if salient {
             Coef::new(psi / (lq - ld))
         } else {
@@ -188,36 +173,27 @@ impl FluxConfig {
             0.0
         };
         // The nominal bus: V_max = V_b (m = 1).
-        let max_pu = max_speed_f64(psi, ld, r, id_lim, margin, SPEED_CAP_PER_BASE);
+        let max_pu = max_speed_f64(psi, ld, r, id_lim, VOLTAGE_MARGIN, SPEED_CAP_PER_BASE);
         Ok(Self {
             two_a: two_a.unwrap_or(Coef::ZERO),
             k_mtpa,
-            i_max_sq: {
-                let b = i_max * (1u64 << 24) as f64;
-                libm::round(b * b) as i64
-            },
+            i_max_sq: pu_from_f64(i_max * i_max),
             k_circle: Coef::new(TRACK_POLE / (2.0 * i_max)).unwrap_or(Coef::ZERO),
             i_max: pu_from_f64(i_max),
-            margin: Coef::new(margin.min(1.0 - 1e-9)).unwrap_or(Coef::ZERO),
-            k_fw: if design.field_weakening {
-                // K_fw = ω_fw T/2 with T = 2 T_s.
-                Coef::new((w * base.sample_s).min(0.5)).unwrap_or(Coef::ZERO)
-            } else {
-                Coef::ZERO
-            },
             id_min: pu_from_f64(-id_lim),
             speed_max: if design.field_weakening {
                 pu_from_f64(max_pu)
             } else {
                 Pu::MAX
             },
-            enabled: two_a.is_some() || design.field_weakening,
+            overspeed: pu_from_f64(overspeed_pu),
         })
     }
 
     /// Whether the controller does anything (MTPA on an interior motor, or field weakening).
+    #[inline(always)]
     pub fn enabled(&self) -> bool {
-        self.enabled
+        self.k_mtpa.bits() != 0 || self.id_min != Pu::ZERO
     }
 
     /// Largest speed reference accepted, electrical, per unit (`Pu::MAX` with field
@@ -235,8 +211,6 @@ pub struct FluxController {
     id_mtpa: Pu,
     /// `Δ`, the field-weakening offset (≤ 0).
     delta: Pu,
-    /// `i_d*`.
-    id: Pu,
     /// `|i_q*|` limit.
     iq_max: Pu,
     /// This sample updates `i_d*` (else the `i_q` limit).
@@ -255,6 +229,12 @@ impl FluxController {
     /// The field-weakening offset `Δ`.
     pub fn delta(&self) -> Pu {
         self.delta
+    }
+
+    /// `i_d* = i_d,MTPA + Δ`.
+    #[inline(always)]
+    fn id(&self) -> Pu {
+        self.id_mtpa.saturating_add(self.delta)
     }
 
     /// The MTPA current as tracked.
@@ -288,28 +268,28 @@ impl FluxController {
                 id_mtpa.clamp(Pu::ZERO, c.i_max)
             };
             // Field weakening: (k V_max)² − |v|², Q.48 to Q.24.
-            let lim = frac_mul(c.margin, v_max.to_bits());
+            let lim = frac_mul(MARGIN_Q31, v_max.to_bits());
             let v2 = wmul(v.alpha.to_bits(), v.alpha.to_bits())
                 + wmul(v.beta.to_bits(), v.beta.to_bits());
             let err = sat_i32((wmul(lim, lim) - v2) >> 24);
-            let step = round_shift_sat(c.k_fw.wide(err), 31);
+            let step = round_shift_sat(K_FW_Q31.wide(err), 31);
             // Anti-windup: Δ within [−I_d,lim − i_d,MTPA, 0].
             let lo = c.id_min.saturating_sub(self.id_mtpa).min(Pu::ZERO);
             self.delta =
                 Pu::from_bits(self.delta.to_bits().saturating_add(step)).clamp(lo, Pu::ZERO);
-            self.id = self.id_mtpa.saturating_add(self.delta);
         } else {
             // √(I_max² − i_d²) by one iteration y ← y + g (I_max² − i_d² − y²)/(2 I_max)
             // per update (the fixed point is the root; i_d moves slowly).
-            let (d, y) = (self.id.to_bits(), self.iq_max.to_bits());
-            let e = sat_i32((c.i_max_sq - wmul(d, d) - wmul(y, y)) >> 24);
+            let (d, y) = (self.id().to_bits(), self.iq_max.to_bits());
+            let e =
+                sat_i32(((i64::from(c.i_max_sq.to_bits()) << 24) - wmul(d, d) - wmul(y, y)) >> 24);
             self.iq_max = self
                 .iq_max
                 .saturating_add(Pu::from_bits(c.k_circle.apply_bits(e)))
                 .clamp(Pu::ZERO, c.i_max);
         }
         Dq {
-            d: self.id,
+            d: self.id(),
             q: iq.clamp(self.iq_max.saturating_neg(), self.iq_max),
         }
     }
@@ -350,7 +330,7 @@ mod tests {
     #[test]
     fn mtpa_against_reference() {
         let (m, base) = motor_c();
-        let c = FluxConfig::new(&m, &base, 2.0 * base.current_a, FluxDesign::on(&base)).unwrap();
+        let c = FluxConfig::new(&m, &base, 2.0 * base.current_a, FluxDesign::ON, 2.0).unwrap();
         let (psi, ld, lq) = (1.0, m.ld_h / base.inductance_h, m.lq_h / base.inductance_h);
         let torque = |id: f64, iq: f64| iq * (psi + (ld - lq) * id);
         let mut f = FluxController::default();
@@ -372,9 +352,9 @@ mod tests {
         }
         assert!(worst < 2e-4, "MTPA error {worst} pu");
         // A surface motor (or MTPA off) keeps i_d = 0.
-        let mut off = FluxDesign::on(&base);
+        let mut off = FluxDesign::ON;
         off.mtpa = false;
-        let c0 = FluxConfig::new(&m, &base, base.current_a, off).unwrap();
+        let c0 = FluxConfig::new(&m, &base, base.current_a, off, 2.0).unwrap();
         f.reset(&c0);
         assert_eq!(settle(&mut f, &c0, 0.8, 0.5).d, Pu::ZERO);
     }
@@ -384,7 +364,7 @@ mod tests {
     #[test]
     fn field_weakening_enters_and_exits() {
         let (m, base) = motor_c();
-        let c = FluxConfig::new(&m, &base, base.current_a, FluxDesign::on(&base)).unwrap();
+        let c = FluxConfig::new(&m, &base, base.current_a, FluxDesign::ON, 2.0).unwrap();
         let mut f = FluxController::default();
         f.reset(&c);
         let out = settle(&mut f, &c, 0.2, 1.0);
@@ -394,7 +374,10 @@ mod tests {
         let iq_max = f.iq_limit().to_num::<f64>();
         let exact = (1.0 - id * id).max(0.0).sqrt();
         // At i_d = −I_max the root is 0, where the iteration converges only as 2 I_max/(g n).
-        assert!(iq_max >= exact && iq_max - exact < 5e-3, "{iq_max} vs {exact}");
+        assert!(
+            iq_max >= exact && iq_max - exact < 5e-3,
+            "{iq_max} vs {exact}"
+        );
         let out = settle(&mut f, &c, 0.2, 0.9);
         assert_eq!(f.delta(), Pu::ZERO);
         assert!(

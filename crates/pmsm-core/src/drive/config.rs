@@ -161,7 +161,7 @@ impl DriveDesign {
             },
             open_loop: OpenLoopDesign::default_for(motor, base),
             protection: Protection::default_for(inverter, base),
-            flux: FluxDesign::default_for(base),
+            flux: FluxDesign::default(),
         }
     }
 }
@@ -210,8 +210,6 @@ pub struct DriveConfig {
     pub(crate) protection: ProtectionConfig,
     pub(crate) monitor: super::monitor::MonitorConfig,
     pub(crate) flux: FluxConfig,
-    /// Estimated speed beyond which the drive trips on [`super::Fault::Overspeed`], per unit.
-    pub(crate) overspeed: Pu,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -369,8 +367,13 @@ impl DriveConfig {
                 vdc_min: pu_from_f64(p.vdc_min_v / base.voltage_v),
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
-            flux: FluxConfig::new(motor, &base, design.speed.current_limit_a, design.flux)?,
-            overspeed: pu_from_f64(overspeed_pu(motor, &base, &design)),
+            flux: FluxConfig::new(
+                motor,
+                &base,
+                design.speed.current_limit_a,
+                design.flux,
+                overspeed_pu(motor, &base, &design),
+            )?,
             base,
             design,
         })
@@ -383,7 +386,7 @@ impl DriveConfig {
 
     /// Estimated speed beyond which the drive trips on [`super::Fault::Overspeed`], per unit.
     pub fn overspeed(&self) -> Pu {
-        self.overspeed
+        self.flux.overspeed
     }
 
     /// Whether dead-time compensation is on.

@@ -172,8 +172,8 @@ pub struct Drive {
     deadtime_bus: DeadTimeBus,
     /// The d-axis reference (MTPA, field weakening).
     flux: FluxController,
-    /// The last speed reference was beyond the maximum speed.
-    speed_ref_limit: Option<SpeedRefLimit>,
+    /// The last speed reference asked for (`speed_ref` is it clamped to the maximum speed).
+    speed_ref_asked: Pu,
 }
 
 /// A speed reference beyond the drive's maximum speed ([`crate::FluxConfig::max_speed`]),
@@ -214,7 +214,7 @@ impl Drive {
             inv_vdc: BusReciprocal::default(),
             deadtime_bus: DeadTimeBus::default(),
             flux: FluxController::default(),
-            speed_ref_limit: None,
+            speed_ref_asked: Pu::ZERO,
         }
     }
 
@@ -248,17 +248,16 @@ impl Drive {
     /// ([`crate::FluxConfig::max_speed`]; [`Drive::speed_ref_limit`] tells when it was).
     pub fn set_speed_ref(&mut self, omega: Pu) {
         let max = self.config.flux.max_speed();
-        let used = omega.clamp(max.saturating_neg(), max);
-        self.speed_ref_limit = (used != omega).then_some(SpeedRefLimit {
-            requested: omega,
-            used,
-        });
-        self.speed_ref = used;
+        self.speed_ref_asked = omega;
+        self.speed_ref = omega.clamp(max.saturating_neg(), max);
     }
 
     /// Whether the last [`Drive::set_speed_ref`] was clamped to the maximum speed, and how.
     pub fn speed_ref_limit(&self) -> Option<SpeedRefLimit> {
-        self.speed_ref_limit
+        (self.speed_ref != self.speed_ref_asked).then_some(SpeedRefLimit {
+            requested: self.speed_ref_asked,
+            used: self.speed_ref,
+        })
     }
 
     /// The field-weakening offset of the d-axis reference (≤ 0; zero below base speed).
@@ -356,7 +355,7 @@ impl Drive {
                 Err(fault) => return self.trip(fault),
             },
             DriveState::Run => {
-                let limit = self.config.overspeed.to_bits();
+                let limit = self.config.flux.overspeed.to_bits();
                 if !(-limit..=limit).contains(&estimate.omega.to_bits()) {
                     self.state = DriveState::Fault(Fault::Overspeed(estimate.omega));
                     self.v_est = AlphaBeta::default();
