@@ -65,7 +65,7 @@ const K_FW_Q31: Coef<31> = Coef::from_bits((K_FW * 2_147_483_648.0) as i32);
 const TRACK_POLE: f64 = 0.1;
 
 /// Fraction `k` of the modulator's circle the field weakening holds the voltage at.
-pub const VOLTAGE_MARGIN: f64 = 0.95;
+pub const VOLTAGE_MARGIN: f64 = 0.97;
 
 /// Gain `K_fw` of the field-weakening integrator per update, `ω_fw T/2` with `T = 2 T_s` and
 /// `ω_fw = 0.02/T_s` (280 rad/s at 14 kHz, below the current loops' default 700 rad/s).
