@@ -248,8 +248,9 @@ impl FluxController {
     }
 
     /// The current reference for the speed loop's `iq`, given the vector `v` the modulator
-    /// made at the last sample and its circle's radius `v_max`.
-    #[inline(always)]
+    /// made at the last sample and its circle's radius `v_max`. Out of line: its 64-bit
+    /// temporaries would otherwise enlarge the drive step's frame on ARMv6-M even when off.
+    #[inline(never)]
     pub fn step(&mut self, c: &FluxConfig, iq: Pu, v: AlphaBeta, v_max: Pu) -> Dq {
         self.odd = !self.odd;
         if self.odd {

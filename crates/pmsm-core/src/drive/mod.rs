@@ -320,6 +320,15 @@ impl Drive {
         }
     }
 
+    /// Trips on [`Fault::Overspeed`] into the active short circuit.
+    #[cold]
+    #[inline(never)]
+    fn overspeed(&mut self, omega: Pu) -> DriveOutput {
+        self.state = DriveState::Fault(Fault::Overspeed(omega));
+        self.v_est = AlphaBeta::default();
+        ACTIVE_SHORT
+    }
+
     fn trip(&mut self, fault: Fault) -> DriveOutput {
         self.state = DriveState::Fault(fault);
         self.v_est = AlphaBeta::default();
@@ -357,9 +366,7 @@ impl Drive {
             DriveState::Run => {
                 let limit = self.config.flux.overspeed.to_bits();
                 if !(-limit..=limit).contains(&estimate.omega.to_bits()) {
-                    self.state = DriveState::Fault(Fault::Overspeed(estimate.omega));
-                    self.v_est = AlphaBeta::default();
-                    return ACTIVE_SHORT;
+                    return self.overspeed(estimate.omega);
                 }
                 self.speed_loop(omega_ref, &estimate)
             }
