@@ -262,6 +262,15 @@ impl DriveConfig {
         design: DriveDesign,
     ) -> Result<Self, ConfigError> {
         let base = PerUnit::new(motor, inverter, sample_hz)?;
+        // Built first: a fallible call late in the literal below makes the compiler keep
+        // every field before it in temporaries (kilobytes of stack on ARMv6-M).
+        let flux = FluxConfig::new(
+            motor,
+            &base,
+            design.speed.current_limit_a,
+            design.flux,
+            overspeed_pu(motor, &base, &design),
+        )?;
         #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
         let g = design.observer_gain_rad_s;
         let estimator = match design.estimator {
@@ -367,13 +376,7 @@ impl DriveConfig {
                 vdc_min: pu_from_f64(p.vdc_min_v / base.voltage_v),
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
-            flux: FluxConfig::new(
-                motor,
-                &base,
-                design.speed.current_limit_a,
-                design.flux,
-                overspeed_pu(motor, &base, &design),
-            )?,
+            flux,
             base,
             design,
         })
