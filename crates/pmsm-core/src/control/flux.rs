@@ -138,7 +138,8 @@ impl FluxConfig {
     /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `overspeed_pu`
     /// is the overspeed trip threshold.
     ///
-    /// Errors: [`ConfigError::Gain`] for a current limit beyond 11 `I_b` (`I_max²` in Q8.24).
+    /// Errors: [`ConfigError::Gain`] for a current limit beyond 11 `I_b` (`I_max²` in Q8.24)
+    /// with MTPA or field weakening on.
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,
@@ -146,12 +147,17 @@ impl FluxConfig {
         design: FluxDesign,
         overspeed_pu: f64,
     ) -> Result<Self, ConfigError> {
-        let i_max = gain_in(
-            "speed.current_limit_a",
-            i_max_a,
-            base.current_a / 64.0,
-            11.0 * base.current_a,
-        )? / base.current_a;
+        // Checked only when used (the speed loop accepts up to 64 I_b).
+        let i_max = if design.mtpa || design.field_weakening {
+            gain_in(
+                "speed.current_limit_a",
+                i_max_a,
+                base.current_a / 64.0,
+                11.0 * base.current_a,
+            )?
+        } else {
+            i_max_a.clamp(base.current_a / 64.0, 11.0 * base.current_a)
+        } / base.current_a;
         let ld = motor.ld_h / base.inductance_h;
         let lq = motor.lq_h / base.inductance_h;
         let r = motor.rs_ohm / base.impedance_ohm;
