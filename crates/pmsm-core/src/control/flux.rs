@@ -219,8 +219,10 @@ pub struct FluxController {
     delta: Pu,
     /// `|i_q*|` limit.
     iq_max: Pu,
-    /// This sample updates `i_d*` (else the `i_q` limit).
-    odd: bool,
+    /// Bit 0 set: this sample updates `i_d*` (else the `i_q` limit). A `u8`, not a `bool`:
+    /// a new niche in `Drive` changes how `Option<Drive>` is laid out, and with it the
+    /// copies callers make (a whole drive more on the stack of the 16 KiB target).
+    phase: u8,
 }
 
 impl FluxController {
@@ -258,8 +260,8 @@ impl FluxController {
     /// temporaries would otherwise enlarge the drive step's frame on ARMv6-M even when off.
     #[inline(never)]
     pub fn step(&mut self, c: &FluxConfig, iq: Pu, v: AlphaBeta, v_max: Pu) -> Dq {
-        self.odd = !self.odd;
-        if self.odd {
+        self.phase ^= 1;
+        if self.phase != 0 {
             // MTPA: f = i_q² − i_d² + 2a i_d is zero on the law and grows with i_d (for
             // i_d < a): one step of i_d ← i_d − g f/(2|a|) per update (Q.48 to Q.24).
             let (q, d) = (iq.to_bits(), self.id_mtpa.to_bits());
