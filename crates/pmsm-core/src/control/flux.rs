@@ -156,7 +156,11 @@ impl FluxConfig {
                 11.0 * base.current_a,
             )?
         } else {
-            i_max_a.clamp(base.current_a / 64.0, 11.0 * base.current_a)
+            // max/min, not clamp: clamp can panic, which costs the small target 20 KiB of
+            // formatting code.
+            i_max_a
+                .max(base.current_a / 64.0)
+                .min(11.0 * base.current_a)
         } / base.current_a;
         let ld = motor.ld_h / base.inductance_h;
         let lq = motor.lq_h / base.inductance_h;
