@@ -276,9 +276,9 @@ impl FluxController {
                 .saturating_sub(Pu::from_bits(c.k_mtpa.apply_bits(f)));
             // Within [−I_max, 0] for L_q > L_d (a > 0), [0, I_max] otherwise.
             self.id_mtpa = if c.two_a.bits() >= 0 {
-                id_mtpa.clamp(c.i_max.saturating_neg(), Pu::ZERO)
+                id_mtpa.min(Pu::ZERO).max(c.i_max.saturating_neg())
             } else {
-                id_mtpa.clamp(Pu::ZERO, c.i_max)
+                id_mtpa.min(c.i_max).max(Pu::ZERO)
             };
             // Field weakening: (k V_max)² − |v|², Q.48 to Q.24.
             let lim = frac_mul(MARGIN_Q31, v_max.to_bits());
@@ -288,8 +288,9 @@ impl FluxController {
             let step = round_shift_sat(K_FW_Q31.wide(err), 31);
             // Anti-windup: Δ within [−I_d,lim − i_d,MTPA, 0].
             let lo = c.id_min.saturating_sub(self.id_mtpa).min(Pu::ZERO);
-            self.delta =
-                Pu::from_bits(self.delta.to_bits().saturating_add(step)).clamp(lo, Pu::ZERO);
+            self.delta = Pu::from_bits(self.delta.to_bits().saturating_add(step))
+                .min(Pu::ZERO)
+                .max(lo);
         } else {
             // √(I_max² − i_d²) by one iteration y ← y + g (I_max² − i_d² − y²)/(2 I_max)
             // per update (the fixed point is the root; i_d moves slowly).
@@ -299,11 +300,12 @@ impl FluxController {
             self.iq_max = self
                 .iq_max
                 .saturating_add(Pu::from_bits(c.k_circle.apply_bits(e)))
-                .clamp(Pu::ZERO, c.i_max);
+                .min(c.i_max)
+                .max(Pu::ZERO);
         }
         Dq {
             d: self.id(),
-            q: iq.clamp(self.iq_max.saturating_neg(), self.iq_max),
+            q: iq.min(self.iq_max).max(self.iq_max.saturating_neg()),
         }
     }
 }

@@ -172,8 +172,6 @@ pub struct Drive {
     deadtime_bus: DeadTimeBus,
     /// The d-axis reference (MTPA, field weakening).
     flux: FluxController,
-    /// The last speed reference asked for (`speed_ref` is it clamped to the maximum speed).
-    speed_ref_asked: Pu,
 }
 
 /// A speed reference beyond the drive's maximum speed ([`crate::FluxConfig::max_speed`]),
@@ -194,7 +192,10 @@ impl SpeedRefLimit {
 }
 
 impl Drive {
-    /// A drive in `Idle`.
+    /// A drive in `Idle`. Out of line: built in place in the caller's slot, without the
+    /// temporaries an inlined copy leaves in the caller's frame (the 16 KiB target holds a
+    /// drive on its stack several times).
+    #[inline(never)]
     pub fn new(config: DriveConfig) -> Self {
         Self {
             estimator: AnyEstimator::new(&config.estimator),
@@ -214,7 +215,6 @@ impl Drive {
             inv_vdc: BusReciprocal::default(),
             deadtime_bus: DeadTimeBus::default(),
             flux: FluxController::default(),
-            speed_ref_asked: Pu::ZERO,
         }
     }
 
@@ -246,17 +246,25 @@ impl Drive {
 
     /// Sets the speed reference, electrical, per unit of `ω_b`, clamped to the maximum speed
     /// ([`crate::FluxConfig::max_speed`]; [`Drive::speed_ref_limit`] tells when it was).
+    /// (The reference is stored as asked and clamped where the drive reads it: a setter that
+    /// reads the configuration made callers keep one more copy of the drive on their stack.)
     pub fn set_speed_ref(&mut self, omega: Pu) {
+        self.speed_ref = omega;
+    }
+
+    /// The speed reference clamped to the maximum speed (max/min: no panic path).
+    #[inline(always)]
+    fn speed_ref_used(&self) -> Pu {
         let max = self.config.flux.max_speed();
-        self.speed_ref_asked = omega;
-        self.speed_ref = omega.clamp(max.saturating_neg(), max);
+        self.speed_ref.min(max).max(max.saturating_neg())
     }
 
     /// Whether the last [`Drive::set_speed_ref`] was clamped to the maximum speed, and how.
     pub fn speed_ref_limit(&self) -> Option<SpeedRefLimit> {
-        (self.speed_ref != self.speed_ref_asked).then_some(SpeedRefLimit {
-            requested: self.speed_ref_asked,
-            used: self.speed_ref,
+        let used = self.speed_ref_used();
+        (used != self.speed_ref).then_some(SpeedRefLimit {
+            requested: self.speed_ref,
+            used,
         })
     }
 
@@ -504,13 +512,14 @@ impl Drive {
     /// The speed reference of the closed loop: a back-EMF estimator cannot run below the
     /// handover speed, so the reference is held at that magnitude (in its direction) there.
     fn run_speed_ref(&self) -> Pu {
+        let speed_ref = self.speed_ref_used();
         if !self.estimator.kind().needs_open_loop_start() {
-            return self.speed_ref;
+            return speed_ref;
         }
         let min = self.config.open_loop.handover_speed;
-        if self.speed_ref.saturating_abs() >= min {
-            self.speed_ref
-        } else if self.speed_ref < Pu::ZERO {
+        if speed_ref.saturating_abs() >= min {
+            speed_ref
+        } else if speed_ref < Pu::ZERO {
             min.saturating_neg()
         } else {
             min
