@@ -8,7 +8,7 @@
 //! ```
 //!
 //! `|v|` is the vector the modulator made at the last sample, `V_max` the radius of its circle,
-//! `k` the margin (default 0.95) that keeps the current loops some room to act. When the
+//! `k` the margin ([`VOLTAGE_MARGIN`], 0.97) that keeps the current loops some room to act. When the
 //! vector stays inside `k V_max` the error is positive and `Δ` bleeds back to zero (the MTPA
 //! current); outside it drives `Δ` negative, which lowers the flux `ψ + L_d i_d` and with it
 //! the voltage. `Δ` is clamped so that `i_d*` never goes below `−I_d,lim = −min(I_max, ψ/L_d)`:
@@ -33,12 +33,13 @@
 //!
 //! | signal | format | range |
 //! |---|---|---|
-//! | `i_q*`, `i_d*`, `Δ`, `I_max`, table values | [`Pu`] Q8.24 of `I_b` | `[−I_max, I_max]`, `I_max` ≤ 64 |
+//! | `i_q*`, `i_d*`, `i_d,MTPA`, `Δ`, `I_max`, `−I_d,lim`, `|i_q|` limit | [`Pu`] Q8.24 of `I_b` | `[−I_max, I_max]` |
+//! | `I_max²` | [`Pu`] (pu²) | `I_max` ≤ 11 with MTPA or field weakening on |
 //! | `v`, `V_max` | [`Pu`] of `V_b` | ≤ 2 |
-//! | `|v|²`, `(k V_max)²` | Q.48 in `i64`, error to Q.24 (saturated) | ≤ 4 |
-//! | `k` | [`Coef<31>`](Coef) | [0.5, 1] |
-//! | `K_fw` | [`Coef<31>`](Coef) | (0, 1) |
-//! | `SEGMENTS / I_max` (index scale) | [`Coef<20>`](Coef) | `I_max` ≥ 1/64 pu |
+//! | `|v|²`, `(k V_max)²`, `i_q²`, `i_d²` | Q.48 in `i64`, differences to Q.24 (saturated) | |
+//! | `2a = ψ/(L_q − L_d)` | [`Coef<20>`](Coef) | `|2a| < 2048` (else treated as surface) |
+//! | `g/(2|a|)`, `g/(2 I_max)` | [`Coef<24>`](Coef) | < 128 |
+//! | `k`, `K_fw` | [`Coef<31>`](Coef) constants | 0.97, 0.02 |
 
 use super::frac_mul;
 use super::gain_in;
@@ -223,9 +224,7 @@ pub struct FluxController {
     delta: Pu,
     /// `|i_q*|` limit.
     iq_max: Pu,
-    /// Bit 0 set: this sample updates `i_d*` (else the `i_q` limit). A `u8`, not a `bool`:
-    /// a new niche in `Drive` changes how `Option<Drive>` is laid out, and with it the
-    /// copies callers make (a whole drive more on the stack of the 16 KiB target).
+    /// Bit 0 set: this sample updates `i_d*` (else the `i_q` limit).
     phase: u8,
 }
 
