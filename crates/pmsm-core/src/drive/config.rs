@@ -417,5 +417,5 @@ fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f6
     };
     let cap = crate::control::flux::SPEED_CAP_PER_BASE;
     let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, 1.0, cap);
-    (OVERSPEED_FACTOR * w).clamp(1.2, cap)
+    (OVERSPEED_FACTOR * w).max(1.2).min(cap)
 }
