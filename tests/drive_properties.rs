@@ -1,11 +1,11 @@
 //! Property tests of the drive's control step on wild inputs: random sensor words (any i32),
 //! random motors within the envelope and random speed commands. The step must never panic,
-//! its duties must stay in [0, 1], a fault must turn the outputs off, and every state must
-//! stay finite (the estimate included).
+//! its duties must stay in [0, 1], a fault must turn the outputs off (overspeed: short the
+//! motor, `ACTIVE_SHORT`), and every state must stay finite (the estimate included).
 
 use pmsm_core::{
-    Abc, Angle, Drive, DriveConfig, DriveInput, DriveOptions, DriveState, EstimatorKind,
-    InverterParams, MotorParams, Pu, StartupMode,
+    ACTIVE_SHORT, Abc, Angle, Drive, DriveConfig, DriveInput, DriveOptions, DriveState,
+    EstimatorKind, Fault, InverterParams, MotorParams, Pu, StartupMode,
 };
 use proptest::prelude::*;
 
@@ -54,8 +54,10 @@ fn check(d: &mut Drive, words: &[(i32, i32, i32, i32)], speed: i32) -> Result<()
                 "duty {duty}"
             );
         }
-        if let DriveState::Fault(_) = d.state() {
-            prop_assert!(!out.pwm_on, "a faulted drive keeps switching");
+        if let DriveState::Fault(f) = d.state() {
+            // Overspeed alone short-circuits the motor instead (docs/field-weakening.md §4).
+            let shorted = matches!(f, Fault::Overspeed(_)) && out == ACTIVE_SHORT;
+            prop_assert!(!out.pwm_on || shorted, "a faulted drive keeps switching");
         }
     }
     Ok(())
@@ -104,8 +106,9 @@ proptest! {
                 i_abc: Abc { a: Pu::from_bits(a), b: Pu::from_bits(b), c: Pu::from_bits(-a - b) },
                 vdc: Pu::from_bits(v),
             });
+            let shorted = matches!(d.state(), DriveState::Fault(Fault::Overspeed(_))) && out == ACTIVE_SHORT;
             if out.pwm_on {
-                prop_assert!(matches!(d.state(), DriveState::Run | DriveState::OpenLoop | DriveState::Ipd | DriveState::Align));
+                prop_assert!(shorted || matches!(d.state(), DriveState::Run | DriveState::OpenLoop | DriveState::Ipd | DriveState::Align));
             }
             if let DriveState::Fault(f) = d.state() {
                 // Not the sensor or bus checks: the words are a balanced set on a good bus.
@@ -113,7 +116,7 @@ proptest! {
                     !matches!(f.name(), "current_sensor" | "bus_undervoltage" | "bus_overvoltage"),
                     "{}", f.name()
                 );
-                prop_assert!(!out.pwm_on);
+                prop_assert!(!out.pwm_on || shorted);
             }
             // The current-model MRAS clamps its speed to ±4 pu (the EMF observers' speed is
             // |ê|/ψ of whatever the words imply: a saturating Pu, bounded by its type).

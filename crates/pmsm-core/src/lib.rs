@@ -106,8 +106,12 @@ pub use control::{
     CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, Pi, PiConfig,
     PiOutput, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
 };
+pub use control::{
+    FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,
+};
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
+pub use drive::{ACTIVE_SHORT, OVERSPEED_FACTOR, SpeedRefLimit};
 pub use drive::{
     Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput, DriveState, Fault,
     OpenLoopDesign, Protection, StartupMode, Telemetry,

@@ -164,6 +164,12 @@ pub(crate) struct BusReciprocal {
 }
 
 impl BusReciprocal {
+    /// The circle's radius of the last bus reading (0 before the first).
+    #[inline(always)]
+    pub(crate) fn v_max(&self) -> Pu {
+        self.v_max
+    }
+
     /// The bus terms of `vdc > 0` for the modulator `m`: from the cache when `vdc` is the
     /// last reading, else computed and stored (a reading `≤ 0`, which the modulator never
     /// passes, gives 0).

@@ -332,6 +332,11 @@ enum pmsm_fault_t
    * (`pmsm_report_overrun`); value 0.
    */
   PMSM_FAULT_OVERRUN = 10,
+  /**
+   * The estimated speed is beyond what the drive can hold within the bus; value: the
+   * speed, Q8.24 pu. The outputs short the motor (every duty 0, low-side switches on).
+   */
+  PMSM_FAULT_OVERSPEED = 11,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

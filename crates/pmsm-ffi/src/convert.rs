@@ -210,9 +210,10 @@ pub fn state_code(s: &DriveState) -> u32 {
 pub fn fault_code(s: &DriveState) -> (u32, i32) {
     let value = match s {
         DriveState::Fault(f) => match f {
-            Fault::OverCurrent(x) | Fault::BusUnderVoltage(x) | Fault::BusOverVoltage(x) => {
-                x.to_bits()
-            }
+            Fault::OverCurrent(x)
+            | Fault::BusUnderVoltage(x)
+            | Fault::BusOverVoltage(x)
+            | Fault::Overspeed(x) => x.to_bits(),
             Fault::InitialPosition(e) => i32::from(e.code()),
             Fault::Handover(a, _) => a.0,
             Fault::CurrentSensor(ch) => ch.map_or(-1, i32::from),

@@ -139,6 +139,9 @@ pub enum pmsm_fault_t {
     /// The firmware reported a control step that did not finish within its period
     /// (`pmsm_report_overrun`); value 0.
     PMSM_FAULT_OVERRUN = 10,
+    /// The estimated speed is beyond what the drive can hold within the bus; value: the
+    /// speed, Q8.24 pu. The outputs short the motor (every duty 0, low-side switches on).
+    PMSM_FAULT_OVERSPEED = 11,
 }
 
 /// Which check of the initial position detection failed (`pmsm_state_info_t.fault_value` of

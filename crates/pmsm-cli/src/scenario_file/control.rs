@@ -65,6 +65,13 @@ pub struct Control {
     pub health_limit_pu: Option<f64>,
     /// Motor file the drive is designed from (`scenario_extras`); the plant keeps `motor`.
     pub model_motor: Option<String>,
+    /// Maximum torque per ampere for interior motors (default false: `i_d = 0`).
+    #[serde(default)]
+    pub mtpa: bool,
+    /// Field weakening by voltage feedback, and the speed reference clamped to the maximum
+    /// speed (default false).
+    #[serde(default)]
+    pub field_weakening: bool,
 }
 
 impl Control {

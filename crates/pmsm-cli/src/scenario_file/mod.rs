@@ -20,6 +20,8 @@
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
 //! health_limit_pu = 0.5            # optional: trip on the estimator's health figure
+//! mtpa = true                      # optional: maximum torque per ampere (interior motors)
+//! field_weakening = true           # optional: field weakening, speed clamped to the maximum
 //!
 //! [initial]
 //! theta_e_deg = 40.0

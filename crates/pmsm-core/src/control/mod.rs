@@ -12,10 +12,14 @@
 //! instructions each on a Cortex-M4.
 
 pub(crate) mod current;
+pub(crate) mod flux;
 pub(crate) mod pi;
 pub(crate) mod speed;
 
 pub use current::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput};
+pub use flux::{
+    FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,
+};
 pub use pi::{Pi, PiConfig, PiOutput};
 pub use speed::{SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};
 

@@ -30,7 +30,7 @@ impl DriveState {
 impl Fault {
     /// 0 is "no fault"; `OverCurrent` 1, `BusUnderVoltage` 2, `BusOverVoltage` 3,
     /// `InitialPosition` 4, `Handover` 5, `CurrentSensor` 6, `PhaseLoss` 7, `Stall` 8,
-    /// `LossOfLock` 9, `Overrun` 10.
+    /// `LossOfLock` 9, `Overrun` 10, `Overspeed` 11.
     pub const fn code(&self) -> u8 {
         match self {
             Fault::OverCurrent(_) => 1,
@@ -43,6 +43,7 @@ impl Fault {
             Fault::Stall => 8,
             Fault::LossOfLock => 9,
             Fault::Overrun => 10,
+            Fault::Overspeed(_) => 11,
         }
     }
 }
@@ -91,6 +92,7 @@ mod tests {
             Fault::Stall,
             Fault::LossOfLock,
             Fault::Overrun,
+            Fault::Overspeed(Pu::ZERO),
         ];
         for (k, f) in faults.iter().enumerate() {
             assert_eq!(usize::from(f.code()), k + 1, "{}", f.name());

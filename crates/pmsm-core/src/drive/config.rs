@@ -3,6 +3,7 @@
 
 use crate::Angle;
 use crate::control::current::{CurrentConfig, CurrentDesign};
+use crate::control::flux::{FluxConfig, FluxDesign};
 use crate::control::speed::{SpeedConfig, SpeedDesign};
 use crate::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode};
 use crate::error::ConfigError;
@@ -122,6 +123,8 @@ pub struct DriveDesign {
     pub open_loop: OpenLoopDesign,
     /// Trip thresholds.
     pub protection: Protection,
+    /// The d-axis reference: MTPA and field weakening (docs/field-weakening.md).
+    pub flux: FluxDesign,
 }
 
 impl DriveDesign {
@@ -158,6 +161,7 @@ impl DriveDesign {
             },
             open_loop: OpenLoopDesign::default_for(motor, base),
             protection: Protection::default_for(inverter, base),
+            flux: FluxDesign::default(),
         }
     }
 }
@@ -205,6 +209,7 @@ pub struct DriveConfig {
     pub(crate) open_loop: OpenLoopConfig,
     pub(crate) protection: ProtectionConfig,
     pub(crate) monitor: super::monitor::MonitorConfig,
+    pub(crate) flux: FluxConfig,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -257,6 +262,15 @@ impl DriveConfig {
         design: DriveDesign,
     ) -> Result<Self, ConfigError> {
         let base = PerUnit::new(motor, inverter, sample_hz)?;
+        // Built first: a fallible call late in the literal below makes the compiler keep
+        // every field before it in temporaries (kilobytes of stack on ARMv6-M).
+        let flux = FluxConfig::new(
+            motor,
+            &base,
+            design.speed.current_limit_a,
+            design.flux,
+            overspeed_pu(motor, &base, &design),
+        )?;
         #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
         let g = design.observer_gain_rad_s;
         let estimator = match design.estimator {
@@ -362,13 +376,46 @@ impl DriveConfig {
                 vdc_min: pu_from_f64(p.vdc_min_v / base.voltage_v),
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
+            flux,
             base,
             design,
         })
+    }
+
+    /// The d-axis reference's configuration (MTPA, field weakening, maximum speed).
+    pub fn flux(&self) -> &FluxConfig {
+        &self.flux
+    }
+
+    /// Estimated speed beyond which the drive trips on [`super::Fault::Overspeed`], per unit.
+    pub fn overspeed(&self) -> Pu {
+        self.flux.overspeed
     }
 
     /// Whether dead-time compensation is on.
     pub fn deadtime_compensation(&self) -> bool {
         self.design.deadtime.mode != DeadTimeMode::Off
     }
+}
+
+/// Times the highest controllable speed at which the drive trips on overspeed.
+pub const OVERSPEED_FACTOR: f64 = 1.15;
+
+/// The overspeed threshold, per unit: [`OVERSPEED_FACTOR`] times the highest speed at which
+/// the drive can still hold the no-load voltage within the circle at the nominal bus, i.e.
+/// with `i_d = −min(I_max, ψ/L_d)` under field weakening, `i_d = 0` without (where the EMF
+/// `ωψ` reaches `V_DC/√3`, the bus the diodes would rectify into). Never below 1.2 pu.
+fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f64 {
+    let i_max = design.speed.current_limit_a / base.current_a;
+    let ld = motor.ld_h / base.inductance_h;
+    let psi = motor.flux_wb / base.flux_wb;
+    let r = motor.rs_ohm / base.impedance_ohm;
+    let id_lim = if design.flux.field_weakening {
+        i_max.min(psi / ld)
+    } else {
+        0.0
+    };
+    let cap = crate::control::flux::SPEED_CAP_PER_BASE;
+    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, 1.0, cap);
+    (OVERSPEED_FACTOR * w).max(1.2).min(cap)
 }

@@ -22,10 +22,12 @@ mod config;
 mod monitor;
 mod startup;
 
+pub use config::OVERSPEED_FACTOR;
 pub use config::{DriveConfig, DriveDesign, DriveOptions, OpenLoopDesign, Protection, StartupMode};
 
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
+use crate::control::flux::FluxController;
 use crate::control::speed::SpeedController;
 use crate::deadtime::{CurrentSource, DeadTimeBus};
 use crate::frames::{Abc, AlphaBeta, Dq, clarke, inverse_park, park};
@@ -63,6 +65,11 @@ pub enum Fault {
     LossOfLock,
     /// The control step did not finish within its period (reported by the binding).
     Overrun,
+    /// The estimated speed is beyond what the drive can hold within the bus
+    /// ([`DriveConfig::overspeed`]): a load drives the rotor so fast that its EMF would
+    /// rectify into the bus. The inverter short-circuits the motor (all low-side switches
+    /// on, [`ACTIVE_SHORT`]) until [`Drive::clear_fault`] or [`Drive::stop`].
+    Overspeed(Pu),
 }
 
 impl Fault {
@@ -79,6 +86,7 @@ impl Fault {
             Fault::Stall => "stall",
             Fault::LossOfLock => "loss_of_lock",
             Fault::Overrun => "overrun",
+            Fault::Overspeed(_) => "overspeed",
         }
     }
 }
@@ -162,10 +170,32 @@ pub struct Drive {
     inv_vdc: BusReciprocal,
     /// `V_dead/3`, `V_dead/√3` of the last bus reading, for the dead-time vector.
     deadtime_bus: DeadTimeBus,
+    /// The d-axis reference (MTPA, field weakening).
+    flux: FluxController,
+}
+
+/// A speed reference beyond the drive's maximum speed ([`crate::FluxConfig::max_speed`]),
+/// clamped to it by [`Drive::set_speed_ref`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpeedRefLimit {
+    /// The reference asked for, per unit.
+    pub requested: Pu,
+    /// The reference used, per unit (the maximum speed, with the requested sign).
+    pub used: Pu,
+}
+
+impl SpeedRefLimit {
+    /// The reason, for logs.
+    pub const fn name(&self) -> &'static str {
+        "above_max_speed"
+    }
 }
 
 impl Drive {
-    /// A drive in `Idle`.
+    /// A drive in `Idle`. Out of line: built in place in the caller's slot, without the
+    /// temporaries an inlined copy leaves in the caller's frame (the 16 KiB target holds a
+    /// drive on its stack several times).
+    #[inline(never)]
     pub fn new(config: DriveConfig) -> Self {
         Self {
             estimator: AnyEstimator::new(&config.estimator),
@@ -184,6 +214,7 @@ impl Drive {
             iq_ref: Pu::ZERO,
             inv_vdc: BusReciprocal::default(),
             deadtime_bus: DeadTimeBus::default(),
+            flux: FluxController::default(),
         }
     }
 
@@ -213,9 +244,33 @@ impl Drive {
         self.ipd_result
     }
 
-    /// Sets the speed reference, electrical, per unit of `ω_b`.
+    /// Sets the speed reference, electrical, per unit of `ω_b`, clamped to the maximum speed
+    /// ([`crate::FluxConfig::max_speed`]; [`Drive::speed_ref_limit`] tells when it was).
+    /// (The reference is stored as asked and clamped where the drive reads it: a setter that
+    /// reads the configuration made callers keep one more copy of the drive on their stack.)
     pub fn set_speed_ref(&mut self, omega: Pu) {
         self.speed_ref = omega;
+    }
+
+    /// The speed reference clamped to the maximum speed (max/min: no panic path).
+    #[inline(always)]
+    fn speed_ref_used(&self) -> Pu {
+        let max = self.config.flux.max_speed();
+        self.speed_ref.min(max).max(max.saturating_neg())
+    }
+
+    /// Whether the last [`Drive::set_speed_ref`] was clamped to the maximum speed, and how.
+    pub fn speed_ref_limit(&self) -> Option<SpeedRefLimit> {
+        let used = self.speed_ref_used();
+        (used != self.speed_ref).then_some(SpeedRefLimit {
+            requested: self.speed_ref,
+            used,
+        })
+    }
+
+    /// The field-weakening offset of the d-axis reference (≤ 0; zero below base speed).
+    pub fn field_weakening(&self) -> Pu {
+        self.flux.delta()
     }
 
     /// Starts from `Idle` with the configured start-up; does nothing in other states.
@@ -263,6 +318,7 @@ impl Drive {
     fn rotor_found(&mut self, theta: Angle) -> DriveState {
         self.estimator.reset(theta, Pu::ZERO);
         self.current.reset();
+        self.flux.reset(&self.config.flux);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
         if self.estimator.kind().needs_open_loop_start() {
             self.open_loop = OpenLoop::start(theta, self.speed_ref < Pu::ZERO);
@@ -270,6 +326,15 @@ impl Drive {
         } else {
             DriveState::Run
         }
+    }
+
+    /// Trips on [`Fault::Overspeed`] into the active short circuit.
+    #[cold]
+    #[inline(never)]
+    fn overspeed(&mut self, omega: Pu) -> DriveOutput {
+        self.state = DriveState::Fault(Fault::Overspeed(omega));
+        self.v_est = AlphaBeta::default();
+        ACTIVE_SHORT
     }
 
     fn trip(&mut self, fault: Fault) -> DriveOutput {
@@ -284,8 +349,11 @@ impl Drive {
     /// the checks on its output), the state's setpoint (the speed loop in `Run`), then the
     /// current loops, the dead-time compensation and the modulator (`Drive::control`).
     pub fn step(&mut self, input: &DriveInput) -> DriveOutput {
-        if matches!(self.state, DriveState::Idle | DriveState::Fault(_)) {
-            return OFF;
+        match self.state {
+            DriveState::Idle => return OFF,
+            DriveState::Fault(Fault::Overspeed(_)) => return ACTIVE_SHORT,
+            DriveState::Fault(_) => return OFF,
+            _ => {}
         }
         if let Some(fault) = self.protection(input) {
             return self.trip(fault);
@@ -303,7 +371,13 @@ impl Drive {
                 Ok(setpoint) => setpoint,
                 Err(fault) => return self.trip(fault),
             },
-            DriveState::Run => self.speed_loop(omega_ref, &estimate),
+            DriveState::Run => {
+                let limit = self.config.flux.overspeed.to_bits();
+                if !(-limit..=limit).contains(&estimate.omega.to_bits()) {
+                    return self.overspeed(estimate.omega);
+                }
+                self.speed_loop(omega_ref, &estimate)
+            }
             DriveState::Idle | DriveState::Fault(_) => return OFF,
         };
         self.control(input, i, setpoint)
@@ -395,6 +469,7 @@ impl Drive {
             let iq = self.open_loop.handover(estimate, &self.config)?;
             self.speed_filtered = estimate.omega;
             self.speed.reset(estimate.omega, iq);
+            self.flux.reset(&self.config.flux);
             self.state = DriveState::Run;
         }
         Ok(Setpoint {
@@ -410,13 +485,24 @@ impl Drive {
     fn speed_loop(&mut self, omega_ref: Pu, estimate: &Estimate) -> Setpoint {
         let speed = self.speed.step(omega_ref, self.speed_filtered);
         self.iq_ref = speed.iq_ref;
+        let i_ref = if self.config.flux.enabled() {
+            // The modulator's vector and circle of the last sample (docs/field-weakening.md).
+            self.flux.step(
+                &self.config.flux,
+                speed.iq_ref,
+                self.telemetry.v,
+                self.inv_vdc.v_max(),
+            )
+        } else {
+            Dq {
+                d: Pu::ZERO,
+                q: speed.iq_ref,
+            }
+        };
         Setpoint {
             theta: estimate.theta,
             omega: estimate.omega,
-            i_ref: Dq {
-                d: Pu::ZERO,
-                q: speed.iq_ref,
-            },
+            i_ref,
             // The current-model MRAS already rotated this sample's current into the frame
             // at θ̂ (same angle, same current, same bits): reuse its sin/cos and Park.
             frame: self.estimator.frame(),
@@ -426,13 +512,14 @@ impl Drive {
     /// The speed reference of the closed loop: a back-EMF estimator cannot run below the
     /// handover speed, so the reference is held at that magnitude (in its direction) there.
     fn run_speed_ref(&self) -> Pu {
+        let speed_ref = self.speed_ref_used();
         if !self.estimator.kind().needs_open_loop_start() {
-            return self.speed_ref;
+            return speed_ref;
         }
         let min = self.config.open_loop.handover_speed;
-        if self.speed_ref.saturating_abs() >= min {
-            self.speed_ref
-        } else if self.speed_ref < Pu::ZERO {
+        if speed_ref.saturating_abs() >= min {
+            speed_ref
+        } else if speed_ref < Pu::ZERO {
             min.saturating_neg()
         } else {
             min
@@ -576,6 +663,19 @@ fn midpoint(a: SinCos, b: SinCos) -> SinCos {
         cos: avg(a.cos, b.cos),
     }
 }
+
+/// The active short circuit of [`Fault::Overspeed`]: every leg at duty 0, the low-side
+/// switches on over the whole period (the zero vector). The motor's EMF drives the
+/// short-circuit current, about `ψ/L_d` at speed, through the windings instead of charging
+/// the bus through the diodes (docs/field-weakening.md, overspeed).
+pub const ACTIVE_SHORT: DriveOutput = DriveOutput {
+    duties: Duties {
+        a: Unit::ZERO,
+        b: Unit::ZERO,
+        c: Unit::ZERO,
+    },
+    pwm_on: true,
+};
 
 /// Outputs off.
 const OFF: DriveOutput = DriveOutput {

@@ -92,6 +92,8 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     design.startup = startup_mode(c.startup, sc.theta0_rad);
     design.deadtime.mode = deadtime_mode(c.deadtime_compensation.mode());
     design.protection.health_limit_pu = c.health_limit_pu;
+    design.flux.mtpa = c.mtpa;
+    design.flux.field_weakening = c.field_weakening;
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
     if let Some(g) = c.observer_gain {

@@ -113,6 +113,12 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
         );
     }
     print_phases(&phases(sc, &result.rows));
+    if let Some((t, asked, used)) = result.speed_ref_limited {
+        println!(
+            "  speed reference above the maximum speed (above_max_speed) from t = {t:.4} s: \
+             {asked:.0} r/min asked, {used:.0} r/min used"
+        );
+    }
     if let Some(r) = result
         .rows
         .iter()

@@ -73,6 +73,9 @@ pub struct Run {
     pub ipd: Option<(f64, f64)>,
     /// The fault recorder, fed after each step.
     pub recorder: super::super::fault_dump::Recorder,
+    /// The first speed reference the drive clamped to its maximum speed: time (s), the
+    /// reference and the speed used (r/min).
+    pub speed_ref_limited: Option<(f64, f64, f64)>,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -104,6 +107,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         vdc_v: sc.inverter.vdc_v,
     };
     let mut ipd = None;
+    let mut speed_ref_limited = None;
     let mut injector = Injector::new(&sc.faults);
     let mut recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
     setup.drive.start();
@@ -112,6 +116,10 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         let speed_ref_rpm = sc.speed_ref.at(t);
         let (input, out) = control_step(&mut setup, speed_ref_rpm, &sensed);
         recorder.record(k, &setup.drive, &input);
+        if let (None, Some(l)) = (speed_ref_limited, setup.drive.speed_ref_limit()) {
+            let rpm = setup.base.speed_rad_s(l.used) / setup.model.p() * 60.0 / TAU;
+            speed_ref_limited = Some((t, speed_ref_rpm, rpm));
+        }
         if ipd.is_none() {
             ipd = ipd_detected(&setup.drive, &plant);
         }
@@ -131,6 +139,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         rows,
         ipd,
         recorder,
+        speed_ref_limited,
     })
 }
 

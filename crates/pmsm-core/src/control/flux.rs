@@ -1,0 +1,412 @@
+//! The d-axis current reference: maximum torque per ampere (MTPA) below base speed, field
+//! weakening by voltage feedback above it (docs/field-weakening.md).
+//!
+//! ```text
+//! i_d,MTPA = a − sgn(a) √(a² + i_q*²),   a = ψ / (2 (L_q − L_d))        (interior motor)
+//! Δ       ← clamp(Δ + K_fw ((k V_max)² − |v|²), −I_d,lim − i_d,MTPA, 0)  (field weakening)
+//! i_d*    = i_d,MTPA + Δ,     |i_q*| ≤ √(I_max² − i_d*²)
+//! ```
+//!
+//! `|v|` is the vector the modulator made at the last sample, `V_max` the radius of its circle,
+//! `k` the margin ([`VOLTAGE_MARGIN`], 0.97) that keeps the current loops some room to act. When the
+//! vector stays inside `k V_max` the error is positive and `Δ` bleeds back to zero (the MTPA
+//! current); outside it drives `Δ` negative, which lowers the flux `ψ + L_d i_d` and with it
+//! the voltage. `Δ` is clamped so that `i_d*` never goes below `−I_d,lim = −min(I_max, ψ/L_d)`:
+//! beyond `ψ/L_d` the flux reverses and the voltage grows again (anti-windup by clamping).
+//!
+//! # Discretisation and cost
+//!
+//! The update runs on alternate samples of the closed loop (period `T = 2 T_s`): odd samples
+//! the MTPA current and the integrator, even samples the `i_q` limit. Neither square root is
+//! taken: both are tracked by one iteration per update whose fixed point is the root (a
+//! square root costs ~60 instructions, and the configuration must stay a few words for the
+//! 16 KiB of the smallest target). MTPA: `f = i_q² − i_d² + 2a i_d` vanishes on the law and
+//! grows with `i_d`, so `i_d ← i_d − g f/(2|a|)` converges to it (pole `1 − g(1 − i_d/a)`,
+//! `g` = 0.1). Circle: `y ← y + g (I_max² − i_d² − y²)/(2 I_max)` converges to
+//! `√(I_max² − i_d²)`. Each is three products; the integrator three (two squares, the gain).
+//!
+//! With `|v| ≈ ω (ψ + L_d i_d)` the loop is `d|v|²/dΔ ≈ 2 |v| ω L_d`, and the gain
+//! `K_fw = ω_fw T / 2` (per unit) puts its pole near `ω_fw` where `|v| ω L_d ≈ 1`
+//! (default `ω_fw = 0.02/T_s`, 280 rad/s at 14 kHz, below the current loops' 700 rad/s).
+//!
+//! # Formats
+//!
+//! | signal | format | range |
+//! |---|---|---|
+//! | `i_q*`, `i_d*`, `i_d,MTPA`, `Δ`, `I_max`, `−I_d,lim`, `|i_q|` limit | [`Pu`] Q8.24 of `I_b` | `[−I_max, I_max]` |
+//! | `I_max²` | [`Pu`] (pu²) | `I_max` ≤ 11 with MTPA or field weakening on |
+//! | `v`, `V_max` | [`Pu`] of `V_b` | ≤ 2 |
+//! | `|v|²`, `(k V_max)²`, `i_q²`, `i_d²` | Q.48 in `i64`, differences to Q.24 (saturated) | |
+//! | `2a = ψ/(L_q − L_d)` | [`Coef<20>`](Coef) | `|2a| < 2048` (else treated as surface) |
+//! | `g/(2|a|)`, `g/(2 I_max)` | [`Coef<24>`](Coef) | < 128 |
+//! | `k`, `K_fw` | [`Coef<31>`](Coef) constants | 0.97, 0.02 |
+
+use super::frac_mul;
+use super::gain_in;
+use crate::error::ConfigError;
+use crate::frames::{AlphaBeta, Dq};
+use crate::num::{Coef, Pu, pu_from_f64, round_shift_sat, sat_i32, wmul};
+use crate::params::MotorParams;
+use crate::units::PerUnit;
+
+/// Below this relative saliency `|L_q − L_d| / L_d` a motor is treated as surface: `i_d = 0`
+/// below base speed (MTPA would gain less than 0.1 % of current).
+const SALIENCY_MIN: f64 = 0.02;
+
+/// Cap of the maximum speed, times the base speed `ω_b = V_b/ψ`, for motors whose
+/// characteristic current `ψ/L_d` is within the current limit (infinite in theory).
+pub const SPEED_CAP_PER_BASE: f64 = 4.0;
+
+/// [`VOLTAGE_MARGIN`] in Q1.31.
+const MARGIN_Q31: Coef<31> = Coef::from_bits((VOLTAGE_MARGIN * 2_147_483_648.0) as i32);
+/// [`K_FW`] in Q1.31.
+const K_FW_Q31: Coef<31> = Coef::from_bits((K_FW * 2_147_483_648.0) as i32);
+
+/// Pole of the MTPA and circle iterations per update (`g`): about 1.4 ms to settle at 14 kHz.
+const TRACK_POLE: f64 = 0.1;
+
+/// Fraction `k` of the modulator's circle the field weakening holds the voltage at.
+pub const VOLTAGE_MARGIN: f64 = 0.97;
+
+/// Gain `K_fw` of the field-weakening integrator per update, `ω_fw T/2` with `T = 2 T_s` and
+/// `ω_fw = 0.02/T_s` (280 rad/s at 14 kHz, below the current loops' default 700 rad/s).
+const K_FW: f64 = 0.02;
+
+/// How the d-axis reference is made (both off by default: the paper's `i_d = 0`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FluxDesign {
+    /// MTPA below base speed for interior motors (surface motors keep `i_d = 0`).
+    pub mtpa: bool,
+    /// Field weakening by voltage feedback, and the speed reference clamped to the maximum
+    /// speed.
+    pub field_weakening: bool,
+}
+
+impl FluxDesign {
+    /// MTPA and field weakening on.
+    pub const ON: Self = Self {
+        mtpa: true,
+        field_weakening: true,
+    };
+}
+
+/// Configuration of the [`FluxController`]: eight words, because the smallest target (the
+/// micro:bit's 16 KiB) holds the drive on its stack several times.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FluxConfig {
+    /// `2a = ψ/(L_q − L_d)`, per unit of current; zero without MTPA.
+    two_a: Coef<20>,
+    /// MTPA iteration gain `g/(2|a|)`; zero: `i_d,MTPA = 0` (surface motor or MTPA off).
+    k_mtpa: Coef<24>,
+    /// `I_max²`, per unit (`I_max` ≤ 11).
+    i_max_sq: Pu,
+    /// `g/(2 I_max)`, the circle iteration's gain.
+    k_circle: Coef<24>,
+    /// `I_max`.
+    i_max: Pu,
+    /// `−I_d,lim`; zero without field weakening.
+    id_min: Pu,
+    /// Largest speed reference accepted, per unit ([`FluxConfig::max_speed`]).
+    speed_max: Pu,
+    /// Estimated speed beyond which the drive trips on overspeed, per unit.
+    pub(crate) overspeed: Pu,
+}
+
+/// `i_d` of the MTPA law for `i_q` (any sign), f64 reference: zero for equal inductances.
+pub fn mtpa_id_f64(psi: f64, ld: f64, lq: f64, iq: f64) -> f64 {
+    let dl = lq - ld;
+    if dl == 0.0 {
+        return 0.0;
+    }
+    let a = psi / (2.0 * dl);
+    // Written as −i_q²/(a + sgn(a)√(a² + i_q²)): no cancellation for small i_q.
+    let r = libm::sqrt(a * a + iq * iq);
+    -iq * iq / (a + a.signum() * r)
+}
+
+/// The speed at which the no-load voltage at `i_d = −i_d_lim` reaches `v_lim` (all per unit
+/// or all SI consistently), capped at `cap`.
+pub fn max_speed_f64(psi: f64, ld: f64, r: f64, id_lim: f64, v_lim: f64, cap: f64) -> f64 {
+    let flux = psi - ld * id_lim;
+    let vq2 = v_lim * v_lim - (r * id_lim) * (r * id_lim);
+    if flux <= 0.0 || vq2 <= 0.0 {
+        return cap;
+    }
+    (libm::sqrt(vq2) / flux).min(cap)
+}
+
+impl FluxConfig {
+    /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `overspeed_pu`
+    /// is the overspeed trip threshold.
+    ///
+    /// Errors: [`ConfigError::Gain`] for a current limit beyond 11 `I_b` (`I_max²` in Q8.24)
+    /// with MTPA or field weakening on.
+    pub fn new(
+        motor: &MotorParams,
+        base: &PerUnit,
+        i_max_a: f64,
+        design: FluxDesign,
+        overspeed_pu: f64,
+    ) -> Result<Self, ConfigError> {
+        // Checked only when used (the speed loop accepts up to 64 I_b).
+        let i_max = if design.mtpa || design.field_weakening {
+            gain_in(
+                "speed.current_limit_a",
+                i_max_a,
+                base.current_a / 64.0,
+                11.0 * base.current_a,
+            )?
+        } else {
+            // max/min, not clamp: clamp can panic, which costs the small target 20 KiB of
+            // formatting code.
+            i_max_a
+                .max(base.current_a / 64.0)
+                .min(11.0 * base.current_a)
+        } / base.current_a;
+        let ld = motor.ld_h / base.inductance_h;
+        let lq = motor.lq_h / base.inductance_h;
+        let r = motor.rs_ohm / base.impedance_ohm;
+        let psi = motor.flux_wb / base.flux_wb;
+        let salient = design.mtpa && libm::fabs(lq - ld) > SALIENCY_MIN * ld;
+        // 2|a| beyond Coef<20>'s 2048 (saliency below 1/1000 per unit): no MTPA either.
+        let two_a = if salient {
+            Coef::new(psi / (lq - ld))
+        } else {
+            None
+        };
+        let k_mtpa = match two_a {
+            Some(t) => Coef::new(TRACK_POLE / libm::fabs(t.to_f64())).unwrap_or(Coef::ZERO),
+            None => Coef::ZERO,
+        };
+        let id_lim = if design.field_weakening {
+            i_max.min(psi / ld)
+        } else {
+            0.0
+        };
+        // The nominal bus: V_max = V_b (m = 1).
+        let max_pu = max_speed_f64(psi, ld, r, id_lim, VOLTAGE_MARGIN, SPEED_CAP_PER_BASE);
+        Ok(Self {
+            two_a: two_a.unwrap_or(Coef::ZERO),
+            k_mtpa,
+            i_max_sq: pu_from_f64(i_max * i_max),
+            k_circle: Coef::new(TRACK_POLE / (2.0 * i_max)).unwrap_or(Coef::ZERO),
+            i_max: pu_from_f64(i_max),
+            id_min: pu_from_f64(-id_lim),
+            speed_max: if design.field_weakening {
+                pu_from_f64(max_pu)
+            } else {
+                Pu::MAX
+            },
+            overspeed: pu_from_f64(overspeed_pu),
+        })
+    }
+
+    /// Whether the controller does anything (MTPA on an interior motor, or field weakening).
+    #[inline(always)]
+    pub fn enabled(&self) -> bool {
+        self.k_mtpa.bits() != 0 || self.id_min != Pu::ZERO
+    }
+
+    /// Largest speed reference accepted, electrical, per unit (`Pu::MAX` with field
+    /// weakening off): the speed at which the no-load voltage at `i_d = −I_d,lim` reaches
+    /// `k V_max` at the nominal bus, capped at [`SPEED_CAP_PER_BASE`] times base speed.
+    pub fn max_speed(&self) -> Pu {
+        self.speed_max
+    }
+}
+
+/// State of the d-axis reference.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FluxController {
+    /// `i_d,MTPA`, tracked.
+    id_mtpa: Pu,
+    /// `Δ`, the field-weakening offset (≤ 0).
+    delta: Pu,
+    /// `|i_q*|` limit.
+    iq_max: Pu,
+    /// Bit 0 set: this sample updates `i_d*` (else the `i_q` limit).
+    phase: u8,
+}
+
+impl FluxController {
+    /// Back to `i_d* = 0`, `|i_q*| ≤ I_max`.
+    pub fn reset(&mut self, c: &FluxConfig) {
+        *self = Self {
+            iq_max: c.i_max,
+            ..Self::default()
+        };
+    }
+
+    /// The field-weakening offset `Δ`.
+    pub fn delta(&self) -> Pu {
+        self.delta
+    }
+
+    /// `i_d* = i_d,MTPA + Δ`.
+    #[inline(always)]
+    fn id(&self) -> Pu {
+        self.id_mtpa.saturating_add(self.delta)
+    }
+
+    /// The MTPA current as tracked.
+    pub fn mtpa_id(&self) -> Pu {
+        self.id_mtpa
+    }
+
+    /// The `|i_q*|` limit as tracked.
+    pub fn iq_limit(&self) -> Pu {
+        self.iq_max
+    }
+
+    /// The current reference for the speed loop's `iq`, given the vector `v` the modulator
+    /// made at the last sample and its circle's radius `v_max`. Out of line: its 64-bit
+    /// temporaries would otherwise enlarge the drive step's frame on ARMv6-M even when off.
+    #[inline(never)]
+    pub fn step(&mut self, c: &FluxConfig, iq: Pu, v: AlphaBeta, v_max: Pu) -> Dq {
+        self.phase ^= 1;
+        if self.phase != 0 {
+            // MTPA: f = i_q² − i_d² + 2a i_d is zero on the law and grows with i_d (for
+            // i_d < a): one step of i_d ← i_d − g f/(2|a|) per update (Q.48 to Q.24).
+            let (q, d) = (iq.to_bits(), self.id_mtpa.to_bits());
+            let f = wmul(q, q) - wmul(d, d) + (c.two_a.wide(d) << 4);
+            let f = sat_i32(f >> 24);
+            let id_mtpa = self
+                .id_mtpa
+                .saturating_sub(Pu::from_bits(c.k_mtpa.apply_bits(f)));
+            // Within [−I_max, 0] for L_q > L_d (a > 0), [0, I_max] otherwise.
+            self.id_mtpa = if c.two_a.bits() >= 0 {
+                id_mtpa.min(Pu::ZERO).max(c.i_max.saturating_neg())
+            } else {
+                id_mtpa.min(c.i_max).max(Pu::ZERO)
+            };
+            // Field weakening: (k V_max)² − |v|², Q.48 to Q.24.
+            let lim = frac_mul(MARGIN_Q31, v_max.to_bits());
+            let v2 = wmul(v.alpha.to_bits(), v.alpha.to_bits())
+                + wmul(v.beta.to_bits(), v.beta.to_bits());
+            let err = sat_i32((wmul(lim, lim) - v2) >> 24);
+            let step = round_shift_sat(K_FW_Q31.wide(err), 31);
+            // Anti-windup: Δ within [−I_d,lim − i_d,MTPA, 0].
+            let lo = c.id_min.saturating_sub(self.id_mtpa).min(Pu::ZERO);
+            self.delta = Pu::from_bits(self.delta.to_bits().saturating_add(step))
+                .min(Pu::ZERO)
+                .max(lo);
+        } else {
+            // √(I_max² − i_d²) by one iteration y ← y + g (I_max² − i_d² − y²)/(2 I_max)
+            // per update (the fixed point is the root; i_d moves slowly).
+            let (d, y) = (self.id().to_bits(), self.iq_max.to_bits());
+            let e =
+                sat_i32(((i64::from(c.i_max_sq.to_bits()) << 24) - wmul(d, d) - wmul(y, y)) >> 24);
+            self.iq_max = self
+                .iq_max
+                .saturating_add(Pu::from_bits(c.k_circle.apply_bits(e)))
+                .min(c.i_max)
+                .max(Pu::ZERO);
+        }
+        Dq {
+            d: self.id(),
+            q: iq.min(self.iq_max).max(self.iq_max.saturating_neg()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::InverterParams;
+
+    fn motor_c() -> (MotorParams, PerUnit) {
+        let mut m = MotorParams::new(4, 0.1, 0.3e-3, 0.5e-3, 0.01323, 1e-4, 1e-5);
+        m.rated_current_a = Some(25.0);
+        let inv = InverterParams {
+            vdc_v: 24.0,
+            pwm_hz: 20e3,
+            dead_time_s: 0.0,
+            current_full_scale_a: 100.0,
+        };
+        let base = PerUnit::new(&m, &inv, 20e3).unwrap();
+        (m, base)
+    }
+
+    fn settle(f: &mut FluxController, c: &FluxConfig, iq: f64, v: f64) -> Dq {
+        let inside = AlphaBeta {
+            alpha: pu_from_f64(v),
+            beta: Pu::ZERO,
+        };
+        let mut out = Dq::default();
+        for _ in 0..20_000 {
+            out = f.step(c, pu_from_f64(iq), inside, Pu::from_num(1));
+        }
+        out
+    }
+
+    /// The MTPA law: the f64 reference maximises torque on its current circle, and the
+    /// fixed-point iteration settles within 2e−4 pu of it for either torque sign.
+    #[test]
+    fn mtpa_against_reference() {
+        let (m, base) = motor_c();
+        let c = FluxConfig::new(&m, &base, 2.0 * base.current_a, FluxDesign::ON, 2.0).unwrap();
+        let (psi, ld, lq) = (1.0, m.ld_h / base.inductance_h, m.lq_h / base.inductance_h);
+        let torque = |id: f64, iq: f64| iq * (psi + (ld - lq) * id);
+        let mut f = FluxController::default();
+        f.reset(&c);
+        let mut worst: f64 = 0.0;
+        for k in -20..=20 {
+            let iq = 1.9 * k as f64 / 20.0;
+            let id_ref = mtpa_id_f64(psi, ld, lq, iq);
+            let mag = id_ref.hypot(iq);
+            let t0 = torque(id_ref, iq).abs();
+            for dth in [-0.01, 0.01] {
+                let th = f64::atan2(iq, id_ref) + dth;
+                assert!(torque(mag * th.cos(), mag * th.sin()).abs() <= t0 + 1e-12);
+            }
+            // Well inside the circle: no field weakening.
+            let out = settle(&mut f, &c, iq, 0.5);
+            assert_eq!(f.delta(), Pu::ZERO);
+            worst = worst.max((out.d.to_num::<f64>() - id_ref).abs());
+        }
+        assert!(worst < 2e-4, "MTPA error {worst} pu");
+        // A surface motor (or MTPA off) keeps i_d = 0.
+        let mut off = FluxDesign::ON;
+        off.mtpa = false;
+        let c0 = FluxConfig::new(&m, &base, base.current_a, off, 2.0).unwrap();
+        f.reset(&c0);
+        assert_eq!(settle(&mut f, &c0, 0.8, 0.5).d, Pu::ZERO);
+    }
+
+    /// Field weakening: a vector on the circle drives Δ down to its clamp (i_d* at
+    /// −min(I_max, ψ/L_d)) with |i_q*| on the current circle; room brings Δ back to zero.
+    #[test]
+    fn field_weakening_enters_and_exits() {
+        let (m, base) = motor_c();
+        let c = FluxConfig::new(&m, &base, base.current_a, FluxDesign::ON, 2.0).unwrap();
+        let mut f = FluxController::default();
+        f.reset(&c);
+        let out = settle(&mut f, &c, 0.2, 1.0);
+        let id_lim = 1.0f64.min(1.0 / (m.ld_h / base.inductance_h));
+        let id = out.d.to_num::<f64>();
+        assert!((id + id_lim).abs() < 1e-6, "{id}");
+        let iq_max = f.iq_limit().to_num::<f64>();
+        let exact = (1.0 - id * id).max(0.0).sqrt();
+        // At i_d = −I_max the root is 0, where the iteration converges only as 2 I_max/(g n).
+        assert!(
+            iq_max >= exact && iq_max - exact < 5e-3,
+            "{iq_max} vs {exact}"
+        );
+        let out = settle(&mut f, &c, 0.2, 0.9);
+        assert_eq!(f.delta(), Pu::ZERO);
+        assert!(
+            (out.d.to_num::<f64>()
+                - mtpa_id_f64(
+                    1.0,
+                    m.ld_h / base.inductance_h,
+                    m.lq_h / base.inductance_h,
+                    0.2
+                ))
+            .abs()
+                < 2e-4
+        );
+        // Speed limit: finite here (ψ/L_d above I_max) and above base speed.
+        let w = c.max_speed().to_num::<f64>();
+        assert!(w > 1.5 && w <= SPEED_CAP_PER_BASE, "{w}");
+    }
+}
