@@ -63,6 +63,9 @@ pub struct Control {
     /// Trip on loss of lock when the estimator's filtered health figure exceeds this, per unit
     /// (`Protection::health_limit_pu`; default: report only).
     pub health_limit_pu: Option<f64>,
+    /// The dead time the drive's compensation is designed for, s (default: the inverter's
+    /// `dead_time_s`; the plant keeps the inverter's).
+    pub dead_time_s: Option<f64>,
     /// Motor file the drive is designed from (`scenario_extras`); the plant keeps `motor`.
     pub model_motor: Option<String>,
 }
@@ -73,6 +76,9 @@ impl Control {
     pub(super) fn check(&self) -> Result<(), ParamError> {
         if let Some(hz) = self.sample_hz {
             in_range("control.sample_hz", hz, 100.0, 200e3)?;
+        }
+        if let Some(t) = self.dead_time_s {
+            in_range("control.dead_time_s", t, 0.0, 1e-3)?;
         }
         for (key, v) in [
             ("control.observer_gain", self.observer_gain),

@@ -367,6 +367,11 @@ impl DriveConfig {
         })
     }
 
+    /// The dead-time compensation, as designed for the inverter the drive was told.
+    pub fn deadtime(&self) -> &DeadTimeConfig {
+        &self.deadtime
+    }
+
     /// Whether dead-time compensation is on.
     pub fn deadtime_compensation(&self) -> bool {
         self.design.deadtime.mode != DeadTimeMode::Off
