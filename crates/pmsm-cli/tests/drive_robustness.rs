@@ -121,3 +121,63 @@ fn the_drive_is_told_its_dead_time_apart_from_the_plant() {
         assert!(e.contains(key), "{e}");
     }
 }
+
+/// The shipped scenario `name` with text replacements.
+fn example_edited(name: &str, edits: &[(&str, &str)]) -> Scenario {
+    let mut text = std::fs::read_to_string(example(name)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{name} has no `{from}`");
+        text = text.replace(from, to);
+    }
+    scenario_text(name, &text)
+}
+
+#[test]
+fn auto_start_up_aligns_a_surface_motor_and_detects_on_a_salient_one() {
+    use pmsm_core::StartupMode;
+    // Motor A (surface, L_d = L_q) with `startup` omitted: alignment, then the NLO's open-loop
+    // start and the closed loop to 1146 r/min under load, as with `startup = "align"`.
+    let sc = example_edited(
+        "a-nlo-start-load.toml",
+        &[
+            ("startup = \"align\"\n", ""),
+            ("duration_s = 3.0", "duration_s = 2.3"),
+        ],
+    );
+    assert_eq!(sc.control.startup, scenario_file::Startup::Auto);
+    let run = run_scenario(&sc).unwrap();
+    assert_eq!(run.startup, StartupMode::Align);
+    if let Some(r) = run.rows.iter().find(|r| !r.fault().is_empty()) {
+        panic!("fault at {} s: {:?}", r.t_s, r.state);
+    }
+    let last = run.rows.last().unwrap();
+    println!(
+        "motor A, auto: {:?}, {:.1} r/min at 2.3 s",
+        run.startup, last.speed_rpm
+    );
+    assert!(
+        (last.speed_rpm - 1146.0).abs() < 0.03 * 1146.0,
+        "{}",
+        last.speed_rpm
+    );
+    // The current-model MRAS on motor A, which an IPD start cannot serve (no saliency): auto
+    // aligns too.
+    let sc = example_edited(
+        "a-nlo-start-load.toml",
+        &[
+            ("startup = \"align\"\n", ""),
+            ("observer = \"nlo\"", "observer = \"mras-current\""),
+        ],
+    );
+    let setup = build_drive(&sc).unwrap();
+    assert_eq!(setup.drive.config().design.startup, StartupMode::Align);
+
+    // Motor B (23 % saliency) with auto: the detection, then 300 r/min.
+    let text = MOTOR_B_SHORT.replace("startup = \"ipd\"\n", "startup = \"auto\"\n");
+    let run = run_scenario(&scenario_text("auto-b", &text)).unwrap();
+    assert_eq!(run.startup, StartupMode::Ipd);
+    let (est, truth) = run.ipd.expect("detected");
+    let err = ((est - truth + 180.0).rem_euclid(360.0) - 180.0).abs();
+    assert!(err < 15.0, "{err}");
+    assert!(run.rows.iter().all(|r| r.fault().is_empty()));
+}

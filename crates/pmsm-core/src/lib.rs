@@ -109,8 +109,8 @@ pub use control::{
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
 pub use drive::{
-    Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput, DriveState, Fault,
-    OpenLoopDesign, Protection, StartupMode, Telemetry,
+    AUTO_SALIENCY_MARGIN, Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput,
+    DriveState, Fault, OpenLoopDesign, Protection, StartupMode, Telemetry,
 };
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};

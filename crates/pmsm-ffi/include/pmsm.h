@@ -156,7 +156,7 @@ enum pmsm_startup_t
 #endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
  {
   /**
-   * The estimator's default: IPD for the current-model MRAS, alignment otherwise (0).
+   * Automatic: IPD where the saliency |L_q - L_d|/(L_q + L_d) reaches 10 %, alignment otherwise (0).
    */
   PMSM_STARTUP_DEFAULT = 0,
   /**

@@ -59,7 +59,7 @@ pub enum pmsm_estimator_t {
 #[repr(u32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum pmsm_startup_t {
-    /// The estimator's default: IPD for the current-model MRAS, alignment otherwise (0).
+    /// Automatic: IPD where the saliency |L_q - L_d|/(L_q + L_d) reaches 10 %, alignment otherwise (0).
     PMSM_STARTUP_DEFAULT = 0,
     /// Initial position detection from voltage pulses (needs saliency, L_d < L_q).
     PMSM_STARTUP_IPD = 1,

@@ -19,9 +19,13 @@ pub enum ObserverKind {
 }
 
 /// Start-up modes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Startup {
+    /// Initial position detection on a salient motor, alignment otherwise
+    /// (`pmsm_core::StartupMode::Auto`); the default.
+    #[default]
+    Auto,
     /// Initial position detection by voltage pulses (Khlaief, Boussak, Gossa (2012), §4).
     Ipd,
     /// Align the rotor with a d-axis current first.
@@ -38,7 +42,8 @@ pub struct Control {
     pub sample_hz: Option<f64>,
     /// Estimator.
     pub observer: ObserverKind,
-    /// Start-up mode.
+    /// Start-up mode (default `auto`).
+    #[serde(default)]
     pub startup: Startup,
     /// Dead-time compensation: `true` (both), `false` (off), or `"command"`, `"estimator"`,
     /// `"both"`, `"off"`.

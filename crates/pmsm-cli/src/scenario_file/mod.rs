@@ -16,7 +16,8 @@
 //! [control]
 //! sample_hz = 14000.0              # default pwm_hz
 //! observer = "mras-current"        # nlo | ao | mras-emf | mras-current
-//! startup = "ipd"                  # ipd | align | known
+//! startup = "ipd"                  # auto | ipd | align | known (default auto: ipd when
+//!                                  # |L_q − L_d|/(L_q + L_d) ≥ 10 %, else align)
 //! deadtime_compensation = true
 //! dead_time_s = 1.5e-6             # what the drive's compensation assumes (default: the
 //!                                  # inverter's dead_time_s, which the plant keeps)

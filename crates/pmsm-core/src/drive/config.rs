@@ -27,6 +27,45 @@ pub enum StartupMode {
     Align,
     /// The rotor angle is known (electrical).
     Known(Angle),
+    /// [`StartupMode::Ipd`] where the motor's saliency allows it, [`StartupMode::Align`]
+    /// otherwise ([`StartupMode::resolve`]); [`DriveConfig::new`] resolves it, so a drive never
+    /// runs in this mode.
+    Auto,
+}
+
+/// How far above the detector's least accepted saliency ([`IpdDesign::min_saliency`]) a
+/// motor's `|L_q − L_d|/(L_q + L_d)` must be for [`StartupMode::Auto`] to choose the initial
+/// position detection. The detector measures `ΔI/I_0`, which equals that ratio for linear
+/// magnetics at a locked rotor; the dead time, the ADC's steps and the d axis' saturation by
+/// the pulses take part of it away, so the margin is a factor of two: with the default 5 %
+/// minimum a motor needs 10 % (motor B has 23 %, a surface motor 0).
+pub const AUTO_SALIENCY_MARGIN: f64 = 2.0;
+
+impl StartupMode {
+    /// The saliency the initial position detection sees on a linear `motor`,
+    /// `|L_q − L_d|/(L_q + L_d)` (Khlaief, Boussak, Gossa (2012) eq. 10–13, `Δ/Σ`;
+    /// docs/khlaief2012.md §3).
+    pub fn saliency(motor: &MotorParams) -> f64 {
+        libm::fabs(motor.lq_h - motor.ld_h) / (motor.lq_h + motor.ld_h)
+    }
+
+    /// `Auto` made concrete: the initial position detection when the motor's
+    /// [`StartupMode::saliency`] is at least [`AUTO_SALIENCY_MARGIN`] times `ipd.min_saliency`
+    /// and its pulses can be designed on this motor and bus, the alignment otherwise. Other
+    /// modes are returned unchanged.
+    pub fn resolve(self, motor: &MotorParams, base: &PerUnit, ipd: &IpdDesign) -> Self {
+        match self {
+            StartupMode::Auto => {
+                let salient = Self::saliency(motor) >= AUTO_SALIENCY_MARGIN * ipd.min_saliency;
+                if salient && IpdConfig::new(motor, base, *ipd).is_ok() {
+                    StartupMode::Ipd
+                } else {
+                    StartupMode::Align
+                }
+            }
+            other => other,
+        }
+    }
 }
 
 /// The open-loop current-vector start of the back-EMF estimators, and the alignment.
@@ -116,7 +155,8 @@ pub struct DriveDesign {
     pub deadtime: DeadTimeDesign,
     /// Initial position detection.
     pub ipd: IpdDesign,
-    /// How the drive starts.
+    /// How the drive starts. Default [`StartupMode::Auto`]; the design a [`DriveConfig`] keeps
+    /// has it resolved.
     pub startup: StartupMode,
     /// Open-loop start and alignment.
     pub open_loop: OpenLoopDesign,
@@ -151,11 +191,7 @@ impl DriveDesign {
                 .then(|| 5.0 * crate::control::speed::DEFAULT_BANDWIDTH_TS / base.sample_s),
             deadtime: DeadTimeDesign::default_for(motor, inverter),
             ipd: IpdDesign::default(),
-            startup: if estimator == EstimatorKind::MrasCurrent {
-                StartupMode::Ipd
-            } else {
-                StartupMode::Align
-            },
+            startup: StartupMode::Auto,
             open_loop: OpenLoopDesign::default_for(motor, base),
             protection: Protection::default_for(inverter, base),
         }
@@ -169,8 +205,8 @@ impl DriveDesign {
 pub struct DriveOptions {
     /// The estimator (default: the current-model MRAS, which starts from standstill).
     pub estimator: EstimatorKind,
-    /// How the drive starts; `None`: the estimator's default (initial position detection
-    /// for the current-model MRAS, alignment for the back-EMF estimators).
+    /// How the drive starts; `None`: [`StartupMode::Auto`] (initial position detection on a
+    /// salient motor, alignment otherwise).
     pub startup: Option<StartupMode>,
     /// Dead-time compensation; `None`: the default of [`DeadTimeDesign::default_for`].
     pub deadtime: Option<DeadTimeMode>,
@@ -257,6 +293,8 @@ impl DriveConfig {
         design: DriveDesign,
     ) -> Result<Self, ConfigError> {
         let base = PerUnit::new(motor, inverter, sample_hz)?;
+        let mut design = design;
+        design.startup = design.startup.resolve(motor, &base, &design.ipd);
         #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
         let g = design.observer_gain_rad_s;
         let estimator = match design.estimator {
@@ -375,5 +413,51 @@ impl DriveConfig {
     /// Whether dead-time compensation is on.
     pub fn deadtime_compensation(&self) -> bool {
         self.design.deadtime.mode != DeadTimeMode::Off
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::{inverter_b, motor_b};
+
+    fn resolved(ld_h: f64, lq_h: f64) -> (f64, StartupMode) {
+        let mut m = motor_b();
+        m.ld_h = ld_h;
+        m.lq_h = lq_h;
+        let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
+        let design = DriveDesign::default_for(&m, &inverter_b(), &base, EstimatorKind::MrasCurrent);
+        assert_eq!(design.startup, StartupMode::Auto);
+        let config = DriveConfig::new(&m, &inverter_b(), 14e3, design).unwrap();
+        (StartupMode::saliency(&m), config.design.startup)
+    }
+
+    #[test]
+    fn auto_start_up_follows_the_saliency() {
+        // Motor B: (40.17 − 25)/(40.17 + 25) mH = 0.233, far above 2 × 5 %: detection.
+        let b = motor_b();
+        let (s, mode) = resolved(b.ld_h, b.lq_h);
+        assert!((s - 0.233).abs() < 0.001, "{s}");
+        assert_eq!(mode, StartupMode::Ipd);
+        // A surface motor: alignment.
+        assert_eq!(resolved(0.03, 0.03), (0.0, StartupMode::Align));
+        // Either side of the threshold 2 × 5 % = 10 %: 8 % aligns, 12 % detects.
+        let (s, mode) = resolved(0.0230, 0.0270);
+        assert!((s - 0.08).abs() < 1e-9 && mode == StartupMode::Align, "{s}");
+        let (s, mode) = resolved(0.0220, 0.0280);
+        assert!((s - 0.12).abs() < 1e-9 && mode == StartupMode::Ipd, "{s}");
+        // L_d > L_q counts by its magnitude.
+        assert_eq!(resolved(b.lq_h, b.ld_h).1, StartupMode::Ipd);
+        // A mode given explicitly is kept.
+        let base = PerUnit::new(&b, &inverter_b(), 14e3).unwrap();
+        let ipd = IpdDesign::default();
+        assert_eq!(
+            StartupMode::Align.resolve(&b, &base, &ipd),
+            StartupMode::Align
+        );
+        assert_eq!(
+            StartupMode::Known(Angle::ZERO).resolve(&b, &base, &ipd),
+            StartupMode::Known(Angle::ZERO)
+        );
     }
 }

@@ -22,7 +22,10 @@ mod config;
 mod monitor;
 mod startup;
 
-pub use config::{DriveConfig, DriveDesign, DriveOptions, OpenLoopDesign, Protection, StartupMode};
+pub use config::{
+    AUTO_SALIENCY_MARGIN, DriveConfig, DriveDesign, DriveOptions, OpenLoopDesign, Protection,
+    StartupMode,
+};
 
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
@@ -231,7 +234,8 @@ impl Drive {
                 self.ipd.restart();
                 DriveState::Ipd
             }
-            StartupMode::Align => {
+            // `Auto` is resolved by `DriveConfig::new`; alignment is its safe reading.
+            StartupMode::Align | StartupMode::Auto => {
                 self.open_loop = OpenLoop::align();
                 DriveState::Align
             }

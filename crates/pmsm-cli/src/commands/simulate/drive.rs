@@ -132,6 +132,7 @@ fn estimator_kind(observer: ObserverKind) -> EstimatorKind {
 /// `known` takes the true initial angle of `[initial]`.
 fn startup_mode(startup: Startup, theta0_rad: f64) -> StartupMode {
     match startup {
+        Startup::Auto => StartupMode::Auto,
         Startup::Ipd => StartupMode::Ipd,
         Startup::Align => StartupMode::Align,
         Startup::Known => StartupMode::Known(Angle::from_rad(theta0_rad)),

@@ -102,7 +102,7 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
         sc.path.display(),
         sc.motor.name,
         sc.control.observer,
-        sc.control.startup,
+        result.startup,
         sc.duration_s,
         sc.control.sample_hz.unwrap_or(sc.inverter.pwm_hz)
     );

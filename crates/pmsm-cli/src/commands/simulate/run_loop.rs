@@ -73,6 +73,8 @@ pub struct Run {
     pub ipd: Option<(f64, f64)>,
     /// The fault recorder, fed after each step.
     pub recorder: super::super::fault_dump::Recorder,
+    /// The start-up the drive used (`auto` resolved).
+    pub startup: pmsm_core::StartupMode,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -106,6 +108,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
     let mut ipd = None;
     let mut injector = Injector::new(&sc.faults);
     let mut recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
+    let startup = setup.drive.config().design.startup;
     setup.drive.start();
     for k in 0..n {
         let t = k as f64 / setup.sample_hz;
@@ -131,6 +134,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         rows,
         ipd,
         recorder,
+        startup,
     })
 }
 
