@@ -181,3 +181,60 @@ fn auto_start_up_aligns_a_surface_motor_and_detects_on_a_salient_one() {
     assert!(err < 15.0, "{err}");
     assert!(run.rows.iter().all(|r| r.fault().is_empty()));
 }
+
+#[test]
+fn a_reference_below_the_estimators_minimum_is_held_and_said() {
+    use pmsm_cli::commands::simulate::speed_ref_notice;
+    // Motor A on the NLO asked for 60 r/min, half its least speed (the handover speed, 10 % of
+    // the rated 1200 r/min): the closed loop holds 120 r/min, and says so.
+    let sc = example_edited(
+        "a-nlo-start-load.toml",
+        &[
+            ("duration_s = 3.0", "duration_s = 2.2"),
+            ("rpm = [0.0, 0.0, 1146.0]", "rpm = [0.0, 0.0, 60.0]"),
+        ],
+    );
+    let run = run_scenario(&sc).unwrap();
+    assert!(run.rows.iter().all(|r| r.fault().is_empty()));
+    let held: Vec<f64> = run
+        .rows
+        .iter()
+        .filter_map(|r| r.speed_ref_held_rpm)
+        .collect();
+    let run_rows = run
+        .rows
+        .iter()
+        .filter(|r| r.state == pmsm_core::DriveState::Run)
+        .count();
+    // Every closed-loop sample holds 120 r/min (to the per-unit LSB).
+    assert_eq!(held.len(), run_rows);
+    assert!(
+        held.iter().all(|h| (h - 120.0).abs() < 0.01),
+        "{:?}",
+        held.first()
+    );
+    let tail: Vec<f64> = run
+        .rows
+        .iter()
+        .filter(|r| r.t_s >= 2.0)
+        .map(|r| r.speed_rpm)
+        .collect();
+    let mean = tail.iter().sum::<f64>() / tail.len() as f64;
+    assert!((mean - 120.0).abs() < 6.0, "{mean}");
+    let notice = speed_ref_notice(&sc, &run.rows).expect("a notice");
+    println!("{notice}; mean speed over 2.0–2.2 s {mean:.1} r/min");
+    assert!(
+        notice.contains(
+            "speed reference 60.0 r/min below the NLO's minimum 120.0 r/min: held at 120.0 r/min"
+        ),
+        "{notice}"
+    );
+    // At the reference itself nothing is held and nothing said.
+    let sc = example_edited(
+        "a-nlo-start-load.toml",
+        &[("duration_s = 3.0", "duration_s = 2.2")],
+    );
+    let run = run_scenario(&sc).unwrap();
+    let late: Vec<_> = run.rows.iter().filter(|r| r.t_s > 1.0).collect();
+    assert!(late.iter().all(|r| r.speed_ref_held_rpm.is_none()));
+}

@@ -86,6 +86,22 @@ impl Fault {
     }
 }
 
+/// Why the closed loop does not run at the speed reference set ([`Drive::speed_ref_limit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SpeedRefLimit {
+    /// The reference is below the least speed the back-EMF estimator can run at (the NLO, AO
+    /// and MRAS on the EMF see no EMF at standstill; the least speed is the handover speed,
+    /// [`OpenLoopDesign::handover_speed_rad_s`]): the closed loop holds `held`, that speed in
+    /// the reference's direction, instead of `requested` (both electrical, per unit of `ω_b`).
+    BelowEstimatorMinimum {
+        /// The reference set.
+        requested: Pu,
+        /// The reference the speed loop gets.
+        held: Pu,
+    },
+}
+
 /// What the drive is doing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -425,6 +441,17 @@ impl Drive {
             // at θ̂ (same angle, same current, same bits): reuse its sin/cos and Park.
             frame: self.estimator.frame(),
         }
+    }
+
+    /// Whether the closed loop holds another speed than the reference set, and why; `None`
+    /// when it runs at the reference. Computed on demand (nothing on the control path): a
+    /// binding or a log asks it after [`Drive::step`].
+    pub fn speed_ref_limit(&self) -> Option<SpeedRefLimit> {
+        let held = self.run_speed_ref();
+        (held != self.speed_ref).then_some(SpeedRefLimit::BelowEstimatorMinimum {
+            requested: self.speed_ref,
+            held,
+        })
     }
 
     /// The speed reference of the closed loop: a back-EMF estimator cannot run below the

@@ -21,7 +21,7 @@ pub mod stats;
 pub use drive::{DriveSetup, build_drive};
 pub use output::{OUTPUT_COLUMNS, draw};
 pub use plant::build_plant;
-pub use report::{Phase, phases};
+pub use report::{Phase, phases, speed_ref_notice};
 pub use run_loop::{Row, Run, run_scenario, step_loop, wrap};
 
 use crate::scenario_file;

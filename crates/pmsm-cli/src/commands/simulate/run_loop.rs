@@ -42,6 +42,9 @@ pub struct Row {
     /// The estimator's health figure as the drive filters it, per unit (of `V_b` for the EMF
     /// estimators, of `I_b` for the current-model MRAS; 0 outside the closed loop).
     pub health: f64,
+    /// In the closed loop with the reference below the estimator's least speed
+    /// (`pmsm_core::SpeedRefLimit`): the reference the speed loop holds instead, r/min.
+    pub speed_ref_held_rpm: Option<f64>,
 }
 
 impl Row {
@@ -199,6 +202,14 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
         state: drive.state(),
         i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
         health: pmsm_core::to_f64(drive.health()),
+        speed_ref_held_rpm: match drive.speed_ref_limit() {
+            Some(pmsm_core::SpeedRefLimit::BelowEstimatorMinimum { held, .. })
+                if drive.state() == DriveState::Run =>
+            {
+                Some(base.speed_rad_s(held) / p * 60.0 / TAU)
+            }
+            _ => None,
+        },
     }
 }
 
