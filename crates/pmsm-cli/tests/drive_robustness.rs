@@ -238,3 +238,51 @@ fn a_reference_below_the_estimators_minimum_is_held_and_said() {
     let late: Vec<_> = run.rows.iter().filter(|r| r.t_s > 1.0).collect();
     assert!(late.iter().all(|r| r.speed_ref_held_rpm.is_none()));
 }
+
+#[test]
+fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
+    // The 24 V servo at +90 r/min, known start, a load above its rated torque from 0.2 s: for
+    // each estimator, the first sample with the true speed below zero after the load, and
+    // the first fault.
+    for (observer, expected) in [
+        ("mras-current", "loss_of_lock"),
+        ("nlo", "driven_backwards"),
+        ("ao", "driven_backwards"),
+    ] {
+        let sc = example_edited(
+            "servo-24v-backwards.toml",
+            &[(
+                "observer = \"mras-current\"",
+                &format!("observer = \"{observer}\""),
+            )],
+        );
+        let run = run_scenario(&sc).unwrap();
+        let back = run
+            .rows
+            .iter()
+            .find(|r| r.t_s > 0.2 && r.speed_rpm < 0.0)
+            .expect("the load drives the rotor backwards");
+        let fault = run
+            .rows
+            .iter()
+            .find(|r| !r.fault().is_empty())
+            .expect("a fault");
+        let delay_ms = 1e3 * (fault.t_s - back.t_s);
+        println!(
+            "{observer}: backwards from {:.4} s, {} at {:.4} s ({delay_ms:.1} ms, rotor at {:.0} r/min)",
+            back.t_s,
+            fault.fault(),
+            fault.t_s,
+            fault.speed_rpm
+        );
+        // Before the load the drive ran at its reference without a fault.
+        assert!(
+            fault.t_s > 0.2,
+            "{observer}: {} at {} s",
+            fault.fault(),
+            fault.t_s
+        );
+        assert!(delay_ms < 100.0, "{observer}: {delay_ms} ms");
+        assert_eq!(fault.fault(), expected, "{observer}");
+    }
+}

@@ -43,6 +43,7 @@ impl Format for Fault {
             Fault::Stall => write!(f, "stall"),
             Fault::LossOfLock => write!(f, "loss_of_lock"),
             Fault::Overrun => write!(f, "overrun"),
+            Fault::DrivenBackwards => write!(f, "driven_backwards"),
         }
     }
 }

@@ -109,8 +109,9 @@ pub use control::{
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
 pub use drive::{
-    AUTO_SALIENCY_MARGIN, Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput,
-    DriveState, Fault, OpenLoopDesign, Protection, SpeedRefLimit, StartupMode, Telemetry,
+    AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput,
+    DriveOptions, DriveOutput, DriveState, Fault, OpenLoopDesign, Protection, SpeedRefLimit,
+    StartupMode, Telemetry,
 };
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};

@@ -320,6 +320,11 @@ enum pmsm_fault_t
    * (`pmsm_report_overrun`); value 0.
    */
   PMSM_FAULT_OVERRUN = 10,
+  /**
+   * The speed loop pushes at its current limit in the reference's direction while the rotor
+   * turns the other way without slowing (a load stronger than the drive); value 0.
+   */
+  PMSM_FAULT_DRIVEN_BACKWARDS = 12,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

@@ -139,6 +139,9 @@ pub enum pmsm_fault_t {
     /// The firmware reported a control step that did not finish within its period
     /// (`pmsm_report_overrun`); value 0.
     PMSM_FAULT_OVERRUN = 10,
+    /// The speed loop pushes at its current limit in the reference's direction while the rotor
+    /// turns the other way without slowing (a load stronger than the drive); value 0.
+    PMSM_FAULT_DRIVEN_BACKWARDS = 12,
 }
 
 /// Which check of the initial position detection failed (`pmsm_state_info_t.fault_value` of

@@ -65,8 +65,9 @@ pub struct Control {
     pub model_l_factor: Option<f64>,
     /// Its magnet flux times this.
     pub model_flux_factor: Option<f64>,
-    /// Trip on loss of lock when the estimator's filtered health figure exceeds this, per unit
-    /// (`Protection::health_limit_pu`; default: report only).
+    /// Trip on loss of lock when the estimator's filtered health figure exceeds this in steady
+    /// state, per unit (`Protection::health_limit_pu`; default
+    /// `pmsm_core::DEFAULT_HEALTH_LIMIT_PU`, 0.5; 0 turns the check off).
     pub health_limit_pu: Option<f64>,
     /// The dead time the drive's compensation is designed for, s (default: the inverter's
     /// `dead_time_s`; the plant keeps the inverter's).
@@ -82,6 +83,9 @@ impl Control {
         if let Some(hz) = self.sample_hz {
             in_range("control.sample_hz", hz, 100.0, 200e3)?;
         }
+        if let Some(h) = self.health_limit_pu {
+            in_range("control.health_limit_pu", h, 0.0, 100.0)?;
+        }
         if let Some(t) = self.dead_time_s {
             in_range("control.dead_time_s", t, 0.0, 1e-3)?;
         }
@@ -94,7 +98,6 @@ impl Control {
             ("control.model_rs_factor", self.model_rs_factor),
             ("control.model_l_factor", self.model_l_factor),
             ("control.model_flux_factor", self.model_flux_factor),
-            ("control.health_limit_pu", self.health_limit_pu),
         ] {
             if let Some(v) = v {
                 positive(key, v)?;

@@ -24,7 +24,8 @@
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
-//! health_limit_pu = 0.5            # optional: trip on the estimator's health figure
+//! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
+//!                                  # (default 0.5; 0 = off)
 //!
 //! [initial]
 //! theta_e_deg = 40.0

@@ -30,7 +30,7 @@ impl DriveState {
 impl Fault {
     /// 0 is "no fault"; `OverCurrent` 1, `BusUnderVoltage` 2, `BusOverVoltage` 3,
     /// `InitialPosition` 4, `Handover` 5, `CurrentSensor` 6, `PhaseLoss` 7, `Stall` 8,
-    /// `LossOfLock` 9, `Overrun` 10.
+    /// `LossOfLock` 9, `Overrun` 10, `DrivenBackwards` 12.
     pub const fn code(&self) -> u8 {
         match self {
             Fault::OverCurrent(_) => 1,
@@ -43,6 +43,7 @@ impl Fault {
             Fault::Stall => 8,
             Fault::LossOfLock => 9,
             Fault::Overrun => 10,
+            Fault::DrivenBackwards => 12,
         }
     }
 }
@@ -97,6 +98,9 @@ mod tests {
             assert_eq!(DriveState::Fault(*f).fault_code(), f.code());
         }
         assert_eq!(DriveState::Run.fault_code(), 0);
+        // Code 11 belongs to another fault.
+        assert_eq!(Fault::DrivenBackwards.code(), 12);
+        assert_eq!(Fault::DrivenBackwards.name(), "driven_backwards");
         let states = [
             DriveState::Idle,
             DriveState::Ipd,

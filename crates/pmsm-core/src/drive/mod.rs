@@ -23,8 +23,8 @@ mod monitor;
 mod startup;
 
 pub use config::{
-    AUTO_SALIENCY_MARGIN, DriveConfig, DriveDesign, DriveOptions, OpenLoopDesign, Protection,
-    StartupMode,
+    AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveConfig, DriveDesign, DriveOptions,
+    OpenLoopDesign, Protection, StartupMode,
 };
 
 use crate::angle::{Angle, SinCos};
@@ -66,6 +66,10 @@ pub enum Fault {
     LossOfLock,
     /// The control step did not finish within its period (reported by the binding).
     Overrun,
+    /// The speed loop pushes at its current limit in the reference's direction while the
+    /// rotor turns the other way without slowing as that torque would make it: a load
+    /// stronger than the drive (or an estimate of the wrong sign).
+    DrivenBackwards,
 }
 
 impl Fault {
@@ -82,6 +86,7 @@ impl Fault {
             Fault::Stall => "stall",
             Fault::LossOfLock => "loss_of_lock",
             Fault::Overrun => "overrun",
+            Fault::DrivenBackwards => "driven_backwards",
         }
     }
 }

@@ -99,7 +99,10 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     let c = &sc.control;
     design.startup = startup_mode(c.startup, sc.theta0_rad);
     design.deadtime.mode = deadtime_mode(c.deadtime_compensation.mode());
-    design.protection.health_limit_pu = c.health_limit_pu;
+    // The default limit holds unless the scenario sets one; 0 turns the check off.
+    if let Some(h) = c.health_limit_pu {
+        design.protection.health_limit_pu = (h > 0.0).then_some(h);
+    }
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
     if let Some(g) = c.observer_gain {
