@@ -286,3 +286,46 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
         assert_eq!(fault.fault(), expected, "{observer}");
     }
 }
+
+#[test]
+fn the_plot_shows_no_angle_error_before_the_estimator_runs() {
+    use pmsm_cli::commands::simulate::{draw, plotted_angle_error};
+    use pmsm_core::DriveState;
+    // Motor B from 137°: during the detection the estimate is not an estimate yet (the raw
+    // difference is about −2.4 rad); the plot leaves it out, and shows the closed loop's error.
+    let text = MOTOR_B_SHORT
+        .replace("duration_s = 0.8", "duration_s = 0.3")
+        .replace("[speed_ref]", "[initial]\ntheta_e_deg = 137.0\n[speed_ref]");
+    let sc = scenario_text("plot", &text);
+    let run = run_scenario(&sc).unwrap();
+    let ipd: Vec<_> = run
+        .rows
+        .iter()
+        .filter(|r| r.state == DriveState::Ipd)
+        .collect();
+    assert!(ipd.len() > 10, "{} detection samples", ipd.len());
+    let raw = ipd
+        .iter()
+        .fold(0.0f64, |a, r| a.max(r.angle_error_rad().abs()));
+    assert!(ipd.iter().all(|r| plotted_angle_error(r).is_nan()));
+    let shown: Vec<f64> = run
+        .rows
+        .iter()
+        .map(plotted_angle_error)
+        .filter(|x| x.is_finite())
+        .collect();
+    let worst = shown.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    println!(
+        "raw angle error during the detection up to {raw:.2} rad; plotted up to {worst:.3} rad"
+    );
+    assert!(raw > 1.0, "{raw}");
+    assert!(shown.len() > run.rows.len() / 2);
+    assert!(worst < 0.5, "{worst}");
+    // The SVG draws it without a NaN anywhere.
+    let path =
+        std::env::temp_dir().join(format!("pmsm-drive-robustness-{}.svg", std::process::id()));
+    draw(&path, &sc, &run.rows).unwrap();
+    let svg = std::fs::read_to_string(&path).unwrap();
+    std::fs::remove_file(&path).ok();
+    assert!(svg.len() > 1000 && !svg.contains("NaN"));
+}
