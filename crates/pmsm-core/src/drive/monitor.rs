@@ -296,10 +296,14 @@ impl Monitor {
         // estimate turns the other way, beyond 0.1 pu, without falling as the limit's torque
         // would make it (a ceiling from its value on entry, falling at 1/16 of the motor's
         // largest deceleration), for 20 ms. A healthy reversal falls faster than the ceiling.
+        // The common case (off the limit) costs one branch.
         let sign = s.omega_ref.to_bits();
-        let against = (s.omega.to_bits() ^ sign) < 0;
-        let pushing = limited && (s.iq_ref.to_bits() ^ sign) >= 0;
-        if s.running && against && pushing && speed_ref > c.turning {
+        if limited
+            && (s.omega.to_bits() ^ sign) < 0
+            && (s.iq_ref.to_bits() ^ sign) >= 0
+            && s.running
+            && speed_ref > c.turning
+        {
             if !self.backwards_in {
                 self.backwards_in = true;
                 self.backwards_ceiling = speed;
@@ -313,7 +317,7 @@ impl Monitor {
             if self.backwards > c.backwards_samples {
                 return Some(Fault::DrivenBackwards);
             }
-        } else {
+        } else if self.backwards_in {
             self.backwards_in = false;
             self.backwards = 0;
         }
@@ -348,9 +352,9 @@ impl Monitor {
                 0
             };
         }
-        if self.running_for > c.settle_samples
+        if self.health > c.health_limit
             && self.steady > c.health_arm_samples
-            && self.health > c.health_limit
+            && self.running_for > c.settle_samples
         {
             return Some(Fault::LossOfLock);
         }
