@@ -225,7 +225,7 @@ fn a_reference_below_the_estimators_minimum_is_held_and_said() {
     println!("{notice}; mean speed over 2.0–2.2 s {mean:.1} r/min");
     assert!(
         notice.contains(
-            "speed reference 60.0 r/min below the NLO's minimum 120.0 r/min: held at 120.0 r/min"
+            "speed reference 60.00 r/min below the NLO's minimum 120.0 r/min: held at 120.0 r/min"
         ),
         "{notice}"
     );

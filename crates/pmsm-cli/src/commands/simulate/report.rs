@@ -98,11 +98,11 @@ fn summarise(span_s: (f64, f64), span: &[&Row]) -> Option<Phase> {
 /// Prints what was run, the initial position found, one line per phase and the first fault.
 pub(super) fn print_summary(sc: &Scenario, result: &Run) {
     println!(
-        "pmsm simulate: {} on {}, {:?} estimator, start-up {:?}, {:.3} s at {:.0} Hz",
+        "pmsm simulate: {} on {}, {:?} estimator, start-up {}, {:.3} s at {:.0} Hz",
         sc.path.display(),
         sc.motor.name,
         sc.control.observer,
-        result.startup,
+        startup_name(result.startup),
         sc.duration_s,
         sc.control.sample_hz.unwrap_or(sc.inverter.pwm_hz)
     );
@@ -170,7 +170,7 @@ pub fn speed_ref_notice(sc: &Scenario, rows: &[Row]) -> Option<String> {
         ObserverKind::MrasCurrent => "current-model MRAS",
     };
     Some(format!(
-        "speed reference {:.1} r/min below the {name}'s minimum {:.1} r/min: held at {:.1} r/min \
+        "speed reference {:.2} r/min below the {name}'s minimum {:.1} r/min: held at {:.1} r/min \
          (from t = {:.3} s, {:.3} s in all)",
         last.speed_ref_rpm,
         held.abs(),
@@ -178,4 +178,14 @@ pub fn speed_ref_notice(sc: &Scenario, rows: &[Row]) -> Option<String> {
         first.t_s,
         n as f64 * dt
     ))
+}
+
+/// The start-up as the scenario file names it (`auto` shown resolved).
+fn startup_name(mode: pmsm_core::StartupMode) -> &'static str {
+    match mode {
+        pmsm_core::StartupMode::Ipd => "ipd",
+        pmsm_core::StartupMode::Align => "align",
+        pmsm_core::StartupMode::Known(_) => "known",
+        pmsm_core::StartupMode::Auto => "auto",
+    }
 }
