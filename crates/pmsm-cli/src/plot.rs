@@ -105,15 +105,22 @@ fn span(v: &[f64]) -> (f64, f64) {
     }
 }
 
-/// At most `MAX_POINTS` points that keep each bucket's minimum and maximum, in time order.
+/// At most `MAX_POINTS` points that keep each bucket's minimum and maximum, in time order;
+/// non-finite values (a series' gaps) are left out.
 fn decimate(t: &[f64], v: &[f64]) -> Vec<(f64, f64)> {
-    let n = t.len().min(v.len());
+    let (t, v): (Vec<f64>, Vec<f64>) = t
+        .iter()
+        .zip(v)
+        .filter(|(_, b)| b.is_finite())
+        .map(|(&a, &b)| (a, b))
+        .unzip();
+    let n = t.len();
     let bucket = n.div_ceil(MAX_POINTS / 2).max(1);
     if bucket == 1 {
-        return t.iter().zip(v).map(|(&a, &b)| (a, b)).collect();
+        return t.iter().zip(&v).map(|(&a, &b)| (a, b)).collect();
     }
     let mut out = Vec::with_capacity(MAX_POINTS + 2);
-    for (tc, vc) in t[..n].chunks(bucket).zip(v[..n].chunks(bucket)) {
+    for (tc, vc) in t.chunks(bucket).zip(v.chunks(bucket)) {
         let (mut imin, mut imax) = (0, 0);
         for (i, x) in vc.iter().enumerate() {
             if *x < vc[imin] {

@@ -44,6 +44,7 @@ impl Format for Fault {
             Fault::LossOfLock => write!(f, "loss_of_lock"),
             Fault::Overrun => write!(f, "overrun"),
             Fault::Overspeed(w) => write!(f, "overspeed ({=f32} pu)", pu(w)),
+            Fault::DrivenBackwards => write!(f, "driven_backwards"),
         }
     }
 }
@@ -167,5 +168,24 @@ impl Format for FaultSample {
             self.estimate.omega.to_bits(),
             self.state
         )
+    }
+}
+
+impl Format for crate::SpeedRefLimit {
+    fn format(&self, f: Formatter) {
+        match *self {
+            crate::SpeedRefLimit::BelowEstimatorMinimum { requested, held } => write!(
+                f,
+                "below_estimator_minimum ({=f32} pu held at {=f32} pu)",
+                pu(requested),
+                pu(held)
+            ),
+            crate::SpeedRefLimit::AboveMaxSpeed { requested, used } => write!(
+                f,
+                "above_max_speed ({=f32} pu clamped to {=f32} pu)",
+                pu(requested),
+                pu(used)
+            ),
+        }
     }
 }

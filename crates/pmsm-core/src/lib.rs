@@ -111,10 +111,11 @@ pub use control::{
 };
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
-pub use drive::{ACTIVE_SHORT, OVERSPEED_FACTOR, SpeedRefLimit};
+pub use drive::{ACTIVE_SHORT, OVERSPEED_FACTOR};
 pub use drive::{
-    Drive, DriveConfig, DriveDesign, DriveInput, DriveOptions, DriveOutput, DriveState, Fault,
-    OpenLoopDesign, Protection, StartupMode, Telemetry,
+    AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput,
+    DriveOptions, DriveOutput, DriveState, Fault, OpenLoopDesign, Protection, SpeedRefLimit,
+    StartupMode, Telemetry,
 };
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};

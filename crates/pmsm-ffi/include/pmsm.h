@@ -168,7 +168,7 @@ enum pmsm_startup_t
 #endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
  {
   /**
-   * The estimator's default: IPD for the current-model MRAS, alignment otherwise (0).
+   * Automatic: IPD where the saliency |L_q - L_d|/(L_q + L_d) reaches 10 %, alignment otherwise (0).
    */
   PMSM_STARTUP_DEFAULT = 0,
   /**
@@ -337,6 +337,11 @@ enum pmsm_fault_t
    * speed, Q8.24 pu. The outputs short the motor (every duty 0, low-side switches on).
    */
   PMSM_FAULT_OVERSPEED = 11,
+  /**
+   * The speed loop pushes at its current limit in the reference's direction while the rotor
+   * turns the other way without slowing (a load stronger than the drive); value 0.
+   */
+  PMSM_FAULT_DRIVEN_BACKWARDS = 12,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

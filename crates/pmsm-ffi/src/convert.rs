@@ -218,7 +218,7 @@ pub fn fault_code(s: &DriveState) -> (u32, i32) {
             Fault::Handover(a, _) => a.0,
             Fault::CurrentSensor(ch) => ch.map_or(-1, i32::from),
             Fault::PhaseLoss(ph) => i32::from(*ph),
-            Fault::Stall | Fault::LossOfLock | Fault::Overrun => 0,
+            Fault::Stall | Fault::LossOfLock | Fault::Overrun | Fault::DrivenBackwards => 0,
         },
         _ => 0,
     };

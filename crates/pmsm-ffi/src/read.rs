@@ -176,6 +176,7 @@ pub extern "C" fn pmsm_fault_name(fault: u32) -> *const c_char {
         8 => c"stall",
         9 => c"loss_of_lock",
         10 => c"overrun",
+        12 => c"driven_backwards",
         _ => c"unknown",
     };
     s.as_ptr()

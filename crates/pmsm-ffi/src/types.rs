@@ -59,7 +59,7 @@ pub enum pmsm_estimator_t {
 #[repr(u32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum pmsm_startup_t {
-    /// The estimator's default: IPD for the current-model MRAS, alignment otherwise (0).
+    /// Automatic: IPD where the saliency |L_q - L_d|/(L_q + L_d) reaches 10 %, alignment otherwise (0).
     PMSM_STARTUP_DEFAULT = 0,
     /// Initial position detection from voltage pulses (needs saliency, L_d < L_q).
     PMSM_STARTUP_IPD = 1,
@@ -142,6 +142,9 @@ pub enum pmsm_fault_t {
     /// The estimated speed is beyond what the drive can hold within the bus; value: the
     /// speed, Q8.24 pu. The outputs short the motor (every duty 0, low-side switches on).
     PMSM_FAULT_OVERSPEED = 11,
+    /// The speed loop pushes at its current limit in the reference's direction while the rotor
+    /// turns the other way without slowing (a load stronger than the drive); value 0.
+    PMSM_FAULT_DRIVEN_BACKWARDS = 12,
 }
 
 /// Which check of the initial position detection failed (`pmsm_state_info_t.fault_value` of

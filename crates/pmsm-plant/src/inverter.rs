@@ -25,7 +25,7 @@
 //! between the commanded and the applied αβ voltage (Khlaief, Boussak, Gossa (2012) eq. 9), and has length
 //! `(4/3) V_dead` whenever no current is near zero.
 
-use pmsm_core::{InverterParams, ParamError, ParamReason, in_range, non_negative, positive};
+use pmsm_core::{InverterParams, ParamError, ParamReason, in_range, non_negative};
 
 use crate::motor::Motor;
 use crate::{PlantError, clarke};
@@ -59,7 +59,10 @@ pub struct InverterModel {
     pub t_on_s: f64,
     /// Switch turn-off delay `T_off`, s.
     pub t_off_s: f64,
-    /// Width `i_ε` of the smooth current sign `clamp(i/i_ε, −1, 1)`, A.
+    /// Width `i_ε` of the smooth current sign `clamp(i/i_ε, −1, 1)`, A. Zero: the hard sign,
+    /// taken once per PWM period at its start by the averaged model (as the switching model
+    /// takes it once per interval between edges), so that a current at zero does not flip the
+    /// dead-time voltage between the Runge–Kutta stages of one step.
     pub sign_band_a: f64,
     /// Averaged or switching-level model.
     pub kind: InverterKind,
@@ -111,7 +114,7 @@ impl InverterModel {
                 reason: ParamReason::Inconsistent("pwm_hz (effective dead time over 10 %)"),
             });
         }
-        positive("sign_band_a", self.sign_band_a)?;
+        non_negative("sign_band_a", self.sign_band_a)?;
         Ok(())
     }
 
@@ -133,10 +136,32 @@ impl InverterModel {
             + 0.5 * (self.v_sat_v + self.v_f_v)
     }
 
-    /// Smooth current sign `clamp(i/i_ε, −1, 1)`; NaN reads as 0.
+    /// Smooth current sign `clamp(i/i_ε, −1, 1)`, the hard sign (0 at 0) for `i_ε = 0`; NaN
+    /// reads as 0.
     pub fn smooth_sign(&self, i_a: f64) -> f64 {
+        if self.sign_band_a <= 0.0 {
+            return hard_sign(i_a);
+        }
         let s = i_a / self.sign_band_a;
         if s.is_nan() { 0.0 } else { s.clamp(-1.0, 1.0) }
+    }
+
+    /// With the hard sign (`i_ε = 0`), the signs of `i_abc_a` that hold over a whole period
+    /// (taken at its start); `None` with a band, whose smooth sign follows the current.
+    pub fn period_signs(&self, i_abc_a: [f64; 3]) -> Option<[f64; 3]> {
+        (self.sign_band_a <= 0.0).then(|| i_abc_a.map(hard_sign))
+    }
+
+    /// The model for a period with every switch off: the hard sign cannot hold a blocked
+    /// diode pair at zero (a current held at its start's sign for a period overshoots zero
+    /// by up to `V_DC T/(2L)` and swings between the rails), so such a period uses the band
+    /// [`DEFAULT_SIGN_BAND`] of the full scale instead.
+    fn off_model(&self) -> Self {
+        let mut m = *self;
+        if m.sign_band_a <= 0.0 {
+            m.sign_band_a = DEFAULT_SIGN_BAND * m.params.current_full_scale_a;
+        }
+        m
     }
 
     /// Period-average voltage of one leg against the negative bus rail, V, for duty `duty`
@@ -144,6 +169,11 @@ impl InverterModel {
     /// the motor). Exact average of the switching model at constant duty and current sign;
     /// a duty of exactly 0 or 1 does not switch and has no dead time.
     pub fn leg_voltage_averaged_v(&self, duty: f64, vdc_v: f64, i_a: f64) -> f64 {
+        self.leg_voltage_averaged_signed_v(duty, vdc_v, self.smooth_sign(i_a))
+    }
+
+    /// [`InverterModel::leg_voltage_averaged_v`] for a given current sign `s ∈ [−1, 1]`.
+    pub fn leg_voltage_averaged_signed_v(&self, duty: f64, vdc_v: f64, s: f64) -> f64 {
         let d = clamp_duty(duty);
         let delta = self.effective_dead_time_s() * self.params.pwm_hz;
         // Fraction of the period with the output at the upper rail, for i > 0 and i < 0.
@@ -154,7 +184,7 @@ impl InverterModel {
         };
         let v_pos = f_pos * (vdc_v - self.v_sat_v) - (1.0 - f_pos) * self.v_f_v;
         let v_neg = f_neg * (vdc_v + self.v_f_v) + (1.0 - f_neg) * self.v_sat_v;
-        let s = self.smooth_sign(i_a);
+        let s = if s.is_nan() { 0.0 } else { s.clamp(-1.0, 1.0) };
         0.5 * (1.0 + s) * v_pos + 0.5 * (1.0 - s) * v_neg
     }
 
@@ -196,8 +226,12 @@ impl InverterModel {
 
     /// Longest RK4 sub-step that keeps the averaged model's sign band accurate for a motor of
     /// smallest inductance `l_min_h`, s: within the band the dead-time error acts like a
-    /// resistance of up to `2 V_dead/i_ε`, whose time constant gets two sub-steps.
+    /// resistance of up to `2 V_dead/i_ε`, whose time constant gets two sub-steps. No limit
+    /// for the hard sign (`i_ε = 0`), which is held over the period.
     pub fn averaged_substep_limit_s(&self, vdc_v: f64, l_min_h: f64) -> f64 {
+        if self.sign_band_a <= 0.0 {
+            return f64::INFINITY;
+        }
         let r_band = 2.0 * libm::fabs(self.dead_voltage_v(vdc_v)) / self.sign_band_a;
         if r_band > 0.0 {
             0.5 * l_min_h / r_band
@@ -217,6 +251,17 @@ impl InverterModel {
             // Both off: the current picks the diode, lower for i > 0, upper for i < 0.
             Conduction::Dead => -pos * self.v_f_v + neg * (vdc_v + self.v_f_v),
         }
+    }
+}
+
+/// `sgn(i)`, 0 at 0 and for NaN.
+fn hard_sign(i: f64) -> f64 {
+    if i > 0.0 {
+        1.0
+    } else if i < 0.0 {
+        -1.0
+    } else {
+        0.0
     }
 }
 
@@ -358,9 +403,17 @@ impl Inverter {
             InverterKind::Averaged => {
                 let m = self.model;
                 let h = m.averaged_substep_limit_s(vdc_v, motor.min_inductance_h());
-                motor.step_with_limit(period_s, load_nm, h, |i| {
-                    m.averaged_alpha_beta_v(d, vdc_v, i)
-                })?;
+                match m.period_signs(motor.i_abc()) {
+                    None => motor.step_with_limit(period_s, load_nm, h, |i| {
+                        m.averaged_alpha_beta_v(d, vdc_v, i)
+                    })?,
+                    Some(s) => {
+                        let v = clarke(
+                            [0, 1, 2].map(|k| m.leg_voltage_averaged_signed_v(d[k], vdc_v, s[k])),
+                        );
+                        motor.step_with_limit(period_s, load_nm, h, |_| v)?
+                    }
+                }
             }
             InverterKind::Switching => self.switching_period(motor, &plans, vdc_v, load_nm)?,
         }
@@ -382,7 +435,7 @@ impl Inverter {
         if !vdc_v.is_finite() {
             return Err(PlantError::NonFinite("vdc_v"));
         }
-        let m = self.model;
+        let m = self.model.off_model();
         let period_s = m.period_s();
         let leg = move |i: f64| {
             let s = m.smooth_sign(i);

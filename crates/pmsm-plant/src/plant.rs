@@ -188,8 +188,13 @@ impl Plant {
         let h = m
             .averaged_substep_limit_s(vdc, motor.min_inductance_h())
             .min(0.2 * motor.min_inductance_h() / r_open);
+        // The hard sign (no band) is held over the period, from its start.
+        let signs = m.period_signs(motor.i_abc());
         motor.step_with_limit(period, load_nm, h, |i| {
-            let mut legs = [0, 1, 2].map(|k| m.leg_voltage_averaged_v(d[k], vdc, i[k]));
+            let mut legs = [0, 1, 2].map(|k| {
+                let s = signs.map_or_else(|| m.smooth_sign(i[k]), |s| s[k]);
+                m.leg_voltage_averaged_signed_v(d[k], vdc, s)
+            });
             if let Some(x) = open
                 && let Some(v) = legs.get_mut(x)
             {

@@ -19,9 +19,13 @@ pub enum ObserverKind {
 }
 
 /// Start-up modes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Startup {
+    /// Initial position detection on a salient motor, alignment otherwise
+    /// (`pmsm_core::StartupMode::Auto`); the default.
+    #[default]
+    Auto,
     /// Initial position detection by voltage pulses (Khlaief, Boussak, Gossa (2012), §4).
     Ipd,
     /// Align the rotor with a d-axis current first.
@@ -38,7 +42,8 @@ pub struct Control {
     pub sample_hz: Option<f64>,
     /// Estimator.
     pub observer: ObserverKind,
-    /// Start-up mode.
+    /// Start-up mode (default `auto`).
+    #[serde(default)]
     pub startup: Startup,
     /// Dead-time compensation: `true` (both), `false` (off), or `"command"`, `"estimator"`,
     /// `"both"`, `"off"`.
@@ -60,9 +65,13 @@ pub struct Control {
     pub model_l_factor: Option<f64>,
     /// Its magnet flux times this.
     pub model_flux_factor: Option<f64>,
-    /// Trip on loss of lock when the estimator's filtered health figure exceeds this, per unit
-    /// (`Protection::health_limit_pu`; default: report only).
+    /// Trip on loss of lock when the estimator's filtered health figure exceeds this in steady
+    /// state, per unit (`Protection::health_limit_pu`; default
+    /// `pmsm_core::DEFAULT_HEALTH_LIMIT_PU`, 0.5; 0 turns the check off).
     pub health_limit_pu: Option<f64>,
+    /// The dead time the drive's compensation is designed for, s (default: the inverter's
+    /// `dead_time_s`; the plant keeps the inverter's).
+    pub dead_time_s: Option<f64>,
     /// Motor file the drive is designed from (`scenario_extras`); the plant keeps `motor`.
     pub model_motor: Option<String>,
     /// Maximum torque per ampere for interior motors (default false: `i_d = 0`).
@@ -81,6 +90,12 @@ impl Control {
         if let Some(hz) = self.sample_hz {
             in_range("control.sample_hz", hz, 100.0, 200e3)?;
         }
+        if let Some(h) = self.health_limit_pu {
+            in_range("control.health_limit_pu", h, 0.0, 100.0)?;
+        }
+        if let Some(t) = self.dead_time_s {
+            in_range("control.dead_time_s", t, 0.0, 1e-3)?;
+        }
         for (key, v) in [
             ("control.observer_gain", self.observer_gain),
             ("control.current_bandwidth_hz", self.current_bandwidth_hz),
@@ -90,7 +105,6 @@ impl Control {
             ("control.model_rs_factor", self.model_rs_factor),
             ("control.model_l_factor", self.model_l_factor),
             ("control.model_flux_factor", self.model_flux_factor),
-            ("control.health_limit_pu", self.health_limit_pu),
         ] {
             if let Some(v) = v {
                 positive(key, v)?;

@@ -52,6 +52,10 @@ pub struct Inverter {
     /// Diode forward drop, V.
     #[serde(default)]
     pub v_f_v: f64,
+    /// Width of the averaged model's current sign, A: the dead-time error fades linearly
+    /// within `±sign_band_a` of zero; 0 is the hard sign (held over each PWM period). Default
+    /// `pmsm_plant::DEFAULT_SIGN_BAND` of the ADC full scale.
+    pub sign_band_a: Option<f64>,
 }
 
 impl Inverter {
@@ -61,6 +65,9 @@ impl Inverter {
         non_negative("inverter.dead_time_s", self.dead_time_s)?;
         non_negative("inverter.v_sat_v", self.v_sat_v)?;
         non_negative("inverter.v_f_v", self.v_f_v)?;
+        if let Some(band) = self.sign_band_a {
+            in_range("inverter.sign_band_a", band, 0.0, 1e4)?;
+        }
         if let Some(fs) = self.current_full_scale_a {
             positive("inverter.current_full_scale_a", fs)?;
         }

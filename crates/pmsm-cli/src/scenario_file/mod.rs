@@ -10,16 +10,22 @@
 //! dead_time_s = 2e-6
 //! model = "switching"              # or "averaged" (default "averaged")
 //! current_full_scale_a = 10.0      # optional ADC range, default 4 × rated peak current
+//! sign_band_a = 0.0                # averaged model: 0 = hard current sign (default 1 % of
+//!                                  # the full scale)
 //!
 //! [control]
 //! sample_hz = 14000.0              # default pwm_hz
 //! observer = "mras-current"        # nlo | ao | mras-emf | mras-current
-//! startup = "ipd"                  # ipd | align | known
+//! startup = "ipd"                  # auto | ipd | align | known (default auto: ipd when
+//!                                  # |L_q − L_d|/(L_q + L_d) ≥ 10 %, else align)
 //! deadtime_compensation = true
+//! dead_time_s = 1.5e-6             # what the drive's compensation assumes (default: the
+//!                                  # inverter's dead_time_s, which the plant keeps)
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
-//! health_limit_pu = 0.5            # optional: trip on the estimator's health figure
+//! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
+//!                                  # (default 0.5; 0 = off)
 //! mtpa = true                      # optional: maximum torque per ampere (interior motors)
 //! field_weakening = true           # optional: field weakening, speed clamped to the maximum
 //!

@@ -30,7 +30,7 @@ impl DriveState {
 impl Fault {
     /// 0 is "no fault"; `OverCurrent` 1, `BusUnderVoltage` 2, `BusOverVoltage` 3,
     /// `InitialPosition` 4, `Handover` 5, `CurrentSensor` 6, `PhaseLoss` 7, `Stall` 8,
-    /// `LossOfLock` 9, `Overrun` 10, `Overspeed` 11.
+    /// `LossOfLock` 9, `Overrun` 10, `Overspeed` 11, `DrivenBackwards` 12.
     pub const fn code(&self) -> u8 {
         match self {
             Fault::OverCurrent(_) => 1,
@@ -44,6 +44,7 @@ impl Fault {
             Fault::LossOfLock => 9,
             Fault::Overrun => 10,
             Fault::Overspeed(_) => 11,
+            Fault::DrivenBackwards => 12,
         }
     }
 }
@@ -93,6 +94,7 @@ mod tests {
             Fault::LossOfLock,
             Fault::Overrun,
             Fault::Overspeed(Pu::ZERO),
+            Fault::DrivenBackwards,
         ];
         for (k, f) in faults.iter().enumerate() {
             assert_eq!(usize::from(f.code()), k + 1, "{}", f.name());

@@ -22,8 +22,10 @@ mod config;
 mod monitor;
 mod startup;
 
-pub use config::OVERSPEED_FACTOR;
-pub use config::{DriveConfig, DriveDesign, DriveOptions, OpenLoopDesign, Protection, StartupMode};
+pub use config::{
+    AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveConfig, DriveDesign, DriveOptions,
+    OVERSPEED_FACTOR, OpenLoopDesign, Protection, StartupMode,
+};
 
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
@@ -70,6 +72,10 @@ pub enum Fault {
     /// rectify into the bus. The inverter short-circuits the motor (all low-side switches
     /// on, [`ACTIVE_SHORT`]) until [`Drive::clear_fault`] or [`Drive::stop`].
     Overspeed(Pu),
+    /// The speed loop pushes at its current limit in the reference's direction while the
+    /// rotor turns the other way without slowing as that torque would make it: a load
+    /// stronger than the drive (or an estimate of the wrong sign).
+    DrivenBackwards,
 }
 
 impl Fault {
@@ -87,6 +93,41 @@ impl Fault {
             Fault::LossOfLock => "loss_of_lock",
             Fault::Overrun => "overrun",
             Fault::Overspeed(_) => "overspeed",
+            Fault::DrivenBackwards => "driven_backwards",
+        }
+    }
+}
+
+/// Why the closed loop does not run at the speed reference set ([`Drive::speed_ref_limit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpeedRefLimit {
+    /// The reference is below the least speed the back-EMF estimator can run at (the NLO, AO
+    /// and MRAS on the EMF see no EMF at standstill; the least speed is the handover speed,
+    /// [`OpenLoopDesign::handover_speed_rad_s`]): the closed loop holds `held`, that speed in
+    /// the reference's direction, instead of `requested` (both electrical, per unit of `ω_b`).
+    BelowEstimatorMinimum {
+        /// The reference set.
+        requested: Pu,
+        /// The reference the speed loop gets.
+        held: Pu,
+    },
+    /// The reference is beyond the drive's maximum speed ([`crate::FluxConfig::max_speed`],
+    /// computed from the motor and the bus): the closed loop runs at `used`, that speed with
+    /// the reference's sign, instead of `requested` (electrical, per unit of `ω_b`).
+    AboveMaxSpeed {
+        /// The reference set.
+        requested: Pu,
+        /// The reference used.
+        used: Pu,
+    },
+}
+
+impl SpeedRefLimit {
+    /// The reason, for logs: `below_estimator_minimum` or `above_max_speed`.
+    pub const fn name(&self) -> &'static str {
+        match self {
+            SpeedRefLimit::BelowEstimatorMinimum { .. } => "below_estimator_minimum",
+            SpeedRefLimit::AboveMaxSpeed { .. } => "above_max_speed",
         }
     }
 }
@@ -174,23 +215,6 @@ pub struct Drive {
     flux: FluxController,
 }
 
-/// A speed reference beyond the drive's maximum speed ([`crate::FluxConfig::max_speed`]),
-/// clamped to it by [`Drive::set_speed_ref`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SpeedRefLimit {
-    /// The reference asked for, per unit.
-    pub requested: Pu,
-    /// The reference used, per unit (the maximum speed, with the requested sign).
-    pub used: Pu,
-}
-
-impl SpeedRefLimit {
-    /// The reason, for logs.
-    pub const fn name(&self) -> &'static str {
-        "above_max_speed"
-    }
-}
-
 impl Drive {
     /// A drive in `Idle`. Out of line: built in place in the caller's slot, without the
     /// temporaries an inlined copy leaves in the caller's frame (the 16 KiB target holds a
@@ -259,15 +283,6 @@ impl Drive {
         self.speed_ref.min(max).max(max.saturating_neg())
     }
 
-    /// Whether the last [`Drive::set_speed_ref`] was clamped to the maximum speed, and how.
-    pub fn speed_ref_limit(&self) -> Option<SpeedRefLimit> {
-        let used = self.speed_ref_used();
-        (used != self.speed_ref).then_some(SpeedRefLimit {
-            requested: self.speed_ref,
-            used,
-        })
-    }
-
     /// The field-weakening offset of the d-axis reference (≤ 0; zero below base speed).
     pub fn field_weakening(&self) -> Pu {
         self.flux.delta()
@@ -286,7 +301,8 @@ impl Drive {
                 self.ipd.restart();
                 DriveState::Ipd
             }
-            StartupMode::Align => {
+            // `Auto` is resolved by `DriveConfig::new`; alignment is its safe reading.
+            StartupMode::Align | StartupMode::Auto => {
                 self.open_loop = OpenLoop::align();
                 DriveState::Align
             }
@@ -507,6 +523,19 @@ impl Drive {
             // at θ̂ (same angle, same current, same bits): reuse its sin/cos and Park.
             frame: self.estimator.frame(),
         }
+    }
+
+    /// Whether the closed loop holds another speed than the reference set, and why; `None`
+    /// when it runs at the reference. Computed on demand (nothing on the control path): a
+    /// binding or a log asks it after [`Drive::step`].
+    pub fn speed_ref_limit(&self) -> Option<SpeedRefLimit> {
+        let requested = self.speed_ref;
+        let used = self.speed_ref_used();
+        if used != requested {
+            return Some(SpeedRefLimit::AboveMaxSpeed { requested, used });
+        }
+        let held = self.run_speed_ref();
+        (held != requested).then_some(SpeedRefLimit::BelowEstimatorMinimum { requested, held })
     }
 
     /// The speed reference of the closed loop: a back-EMF estimator cannot run below the

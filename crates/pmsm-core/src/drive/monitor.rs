@@ -17,7 +17,8 @@
 //! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (5 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) through a quarter turn, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `0.5/τ` (`τ` the filter's time constant; 110 rad/s electrical at 5 ms) for `2τ`, at any load | 10–30 ms at 800 r/min on motor B, no load (under load the loss-of-lock check is often first) |
 //! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed below half the reference for 150 ms | 150 ms |
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
-//! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu`, from 100 ms after entering the closed loop (off unless a limit is set) | 10–200 ms, by the limit |
+//! | driven backwards | the speed loop at 90 % of its limit in the reference's direction, the estimated speed the other way beyond 0.1 pu and above a ceiling that starts at its value and falls at 1/16 of the motor's largest deceleration, for 20 ms | 20–40 ms |
+//! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu` (default 0.5 pu), from 100 ms after entering the closed loop, in steady state (40 ms at a constant reference with the estimate within 0.02 pu of it throughout, until the reference changes) | 10–20 ms |
 
 use super::Fault;
 use crate::frames::Abc;
@@ -64,6 +65,23 @@ pub(crate) struct MonitorConfig {
     /// Limit of the estimator's filtered health figure ([`Estimator::health`], filter
     /// `ms10`), per unit of its own quantity; `Pu::MAX` never trips.
     pub health_limit: Pu,
+    /// Consecutive steps in steady state (the reference unchanged and the estimated speed
+    /// within [`MonitorConfig::steady_error`] of it) before the health figure is judged: four time
+    /// constants of its 10 ms filter (40 ms), so that what an acceleration left in the filter
+    /// has decayed below 2 %. Judged from then until the reference changes.
+    pub health_arm_samples: u32,
+    /// Speed error of the steady state, per unit (0.02).
+    pub steady_error: Pu,
+    /// Least wrong-way speed that counts towards [`Fault::DrivenBackwards`]: 0.1 pu of the
+    /// base speed (above the estimators' speed ripple at standstill).
+    pub backwards_speed: Pu,
+    /// How much the wrong-way speed must fall per step while the loop pushes at its limit:
+    /// 1/16 of the motor's largest deceleration `p K_T I_max/J`. A healthy reversal falls at
+    /// that deceleration less what an overhauling load takes (at most 80 % on the sweep's
+    /// loads); a rotor the load drives backwards does not fall.
+    pub backwards_fall: Pu,
+    /// Steps (20 ms) the rotor must keep being driven backwards before the drive trips.
+    pub backwards_samples: u32,
 }
 
 impl MonitorConfig {
@@ -112,6 +130,11 @@ impl MonitorConfig {
             accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts2 / omega_b),
             settle_samples: libm::ceil(0.1 / ts) as u32,
             health_limit,
+            health_arm_samples: libm::ceil(0.04 / ts2) as u32,
+            steady_error: pu_from_f64(0.02),
+            backwards_speed: pu_from_f64(0.1),
+            backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * ts2 / omega_b),
+            backwards_samples: libm::ceil(0.02 / ts2) as u32,
         })
     }
 }
@@ -134,6 +157,14 @@ pub(crate) struct Monitor {
     /// The estimator's health figure, filtered.
     health: Pu,
     stall: u32,
+    /// The reference of the steady state and the steps spent in it (the health check's arming).
+    steady_ref: Pu,
+    steady: u32,
+    /// Driven backwards: in the condition, the ceiling the wrong-way speed must stay under
+    /// (its value on entry, falling by `backwards_fall` a step), and the steps above it.
+    backwards_in: bool,
+    backwards_ceiling: Pu,
+    backwards: u32,
     last_omega: Option<Pu>,
     jerk: Pu,
     running_for: u32,
@@ -261,6 +292,35 @@ impl Monitor {
         if self.stall > c.stall_samples {
             return Some(Fault::Stall);
         }
+        // Driven backwards: the loop pushes at its limit in the reference's direction and the
+        // estimate turns the other way, beyond 0.1 pu, without falling as the limit's torque
+        // would make it (a ceiling from its value on entry, falling at 1/16 of the motor's
+        // largest deceleration), for 20 ms. A healthy reversal falls faster than the ceiling.
+        // The common case (off the limit) costs one branch.
+        let sign = s.omega_ref.to_bits();
+        if limited
+            && (s.omega.to_bits() ^ sign) < 0
+            && (s.iq_ref.to_bits() ^ sign) >= 0
+            && s.running
+            && speed_ref > c.turning
+        {
+            if !self.backwards_in {
+                self.backwards_in = true;
+                self.backwards_ceiling = speed;
+            }
+            self.backwards_ceiling = self.backwards_ceiling.saturating_sub(c.backwards_fall);
+            self.backwards = if speed > self.backwards_ceiling.max(c.backwards_speed) {
+                self.backwards.saturating_add(1)
+            } else {
+                0
+            };
+            if self.backwards > c.backwards_samples {
+                return Some(Fault::DrivenBackwards);
+            }
+        } else if self.backwards_in {
+            self.backwards_in = false;
+            self.backwards = 0;
+        }
         // Loss of lock: the estimate accelerating faster than the motor can, once settled.
         if let Some(last) = self.last_omega.replace(s.omega)
             && self.running_for > c.settle_samples
@@ -278,7 +338,24 @@ impl Monitor {
         } else {
             Pu::ZERO
         };
-        if self.running_for > c.settle_samples && self.health > c.health_limit {
+        // Judged in steady state only: an acceleration raises a healthy estimator's figure (the
+        // current-model MRAS up to 1.3 pu on the sweep, its load steps 0.2 pu). Armed after
+        // 40 ms at a constant reference with the estimate within 0.02 pu of it throughout,
+        // until the reference changes.
+        if s.omega_ref != self.steady_ref {
+            self.steady_ref = s.omega_ref;
+            self.steady = 0;
+        } else if self.steady <= c.health_arm_samples {
+            self.steady = if s.omega_ref.saturating_sub(s.omega).saturating_abs() < c.steady_error {
+                self.steady + 1
+            } else {
+                0
+            };
+        }
+        if self.health > c.health_limit
+            && self.steady > c.health_arm_samples
+            && self.running_for > c.settle_samples
+        {
             return Some(Fault::LossOfLock);
         }
         None
@@ -304,4 +381,84 @@ fn phase_power(i: Pu) -> u32 {
 #[inline(always)]
 fn follow(y: Pu, x: Pu, k: u32) -> Pu {
     y.saturating_add(Pu::from_bits(x.saturating_sub(y).to_bits() >> k))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::drive::{DriveConfig, DriveOptions};
+    use crate::fixtures::{inverter_b, motor_b};
+    use crate::observer::EstimatorKind;
+
+    fn config() -> (DriveConfig, AnyEstimator) {
+        let options = DriveOptions {
+            estimator: EstimatorKind::Nlo,
+            ..DriveOptions::default()
+        };
+        let c = DriveConfig::from_params(&motor_b(), &inverter_b(), 14e3, options).unwrap();
+        let e = AnyEstimator::new(&c.estimator);
+        (c, e)
+    }
+
+    /// Steps the monitor with `omega(k)` against the reference `omega_ref` at the current
+    /// reference `iq_ref`; the sample of the first fault.
+    fn run(
+        omega_ref: f64,
+        iq_ref: f64,
+        omega: impl Fn(u32) -> f64,
+        n: u32,
+    ) -> Option<(u32, Fault)> {
+        let (c, e) = config();
+        let mut m = Monitor::default();
+        for k in 0..n {
+            let s = Signals {
+                i_abc: Abc::default(),
+                omega: pu_from_f64(omega(k)),
+                omega_ref: pu_from_f64(omega_ref),
+                iq_ref: pu_from_f64(iq_ref),
+                running: true,
+            };
+            if let Some(f) = m.check(&c.monitor, &s, &e) {
+                return Some((k, f));
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn a_rotor_driven_backwards_trips_within_its_time() {
+        let (c, _) = config();
+        let limit = c.design.speed.current_limit_a / c.base.current_a;
+        // Motor B's largest acceleration p K_T I_max/J is about 4 pu/s. Pushed forwards at the
+        // limit, the rotor accelerating backwards from standstill at 1 pu/s (14 000 samples
+        // a second): the wrong-way speed passes 0.1 pu at sample 1400, then 20 ms (280
+        // samples) of it trips.
+        let back = |k: u32| -(k as f64) / 14e3;
+        let (k, f) = run(0.1, limit, back, 3000).expect("a fault");
+        assert_eq!(f, Fault::DrivenBackwards);
+        assert!((1400..=1400 + 290).contains(&k), "{k}");
+        // The same with the reference and push backwards, the rotor driven forwards.
+        let (k, f) = run(-0.1, -limit, |k| -back(k), 3000).expect("a fault");
+        assert_eq!(f, Fault::DrivenBackwards);
+        assert!((1400..=1690).contains(&k), "{k}");
+        // Already backwards at a steady 0.5 pu when the loop reaches its limit: 20 ms.
+        let (k, f) = run(0.1, limit, |_| -0.5, 3000).expect("a fault");
+        assert_eq!(f, Fault::DrivenBackwards);
+        assert!(k <= 300, "{k}");
+        // Not pushing at the limit: nothing (a loop still in control).
+        assert_eq!(run(0.1, 0.5 * limit, back, 3000), None);
+        // Healthy reversals at the limit: the wrong-way speed falls from 0.8 pu to 0 at the
+        // full deceleration (0.2 s) or at a fifth of it (an overhauling load, 1 s), with a
+        // ripple of ±0.03 pu: not driven backwards (the stall check, which knows no sign, may
+        // see the slow one's half-speed span).
+        for span_s in [0.2, 1.0] {
+            let reversal = move |k: u32| {
+                let t = k as f64 / 14e3;
+                (0.8 * (1.0 - t / span_s)).max(0.0) + 0.03 * libm::sin(2000.0 * t)
+            };
+            let n = (span_s * 14e3) as u32 + 200;
+            let f = run(-0.8, -limit, reversal, n).map(|x| x.1);
+            assert_ne!(f, Some(Fault::DrivenBackwards), "{span_s} s");
+        }
+    }
 }

@@ -18,8 +18,10 @@ pub struct DriveSetup {
     pub base: PerUnit,
     /// The drive's model of the motor (the plant keeps the true one).
     pub model: MotorParams,
-    /// The inverter, with the ADC full scale resolved; the plant uses the same.
+    /// The inverter, with the ADC full scale resolved, as the plant has it (`[inverter]`).
     pub inverter: InverterParams,
+    /// The inverter as the drive is told it: the same but for `[control] dead_time_s`.
+    pub drive_inverter: InverterParams,
     /// Control sample rate, Hz.
     pub sample_hz: f64,
     /// PWM periods per control sample.
@@ -44,16 +46,22 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
         .inverter
         .current_full_scale_a
         .unwrap_or(4.0 * base.current_a);
+    // The drive's dead-time compensation is designed for the dead time it is told.
+    let drive_inverter = InverterParams {
+        dead_time_s: sc.control.dead_time_s.unwrap_or(inverter.dead_time_s),
+        ..inverter
+    };
     let estimator = estimator_kind(sc.control.observer);
-    let mut design = DriveDesign::default_for(&model, &inverter, &base, estimator);
+    let mut design = DriveDesign::default_for(&model, &drive_inverter, &base, estimator);
     apply_control(&mut design, sc, &model);
-    let config = DriveConfig::new(&model, &inverter, sample_hz, design)
+    let config = DriveConfig::new(&model, &drive_inverter, sample_hz, design)
         .map_err(|e| anyhow!("{shown}: {e}"))?;
     Ok(DriveSetup {
         drive: Drive::new(config),
         base,
         model,
         inverter,
+        drive_inverter,
         sample_hz,
         pwm_per_sample,
     })
@@ -91,7 +99,10 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     let c = &sc.control;
     design.startup = startup_mode(c.startup, sc.theta0_rad);
     design.deadtime.mode = deadtime_mode(c.deadtime_compensation.mode());
-    design.protection.health_limit_pu = c.health_limit_pu;
+    // The default limit holds unless the scenario sets one; 0 turns the check off.
+    if let Some(h) = c.health_limit_pu {
+        design.protection.health_limit_pu = (h > 0.0).then_some(h);
+    }
     design.flux.mtpa = c.mtpa;
     design.flux.field_weakening = c.field_weakening;
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
@@ -126,6 +137,7 @@ fn estimator_kind(observer: ObserverKind) -> EstimatorKind {
 /// `known` takes the true initial angle of `[initial]`.
 fn startup_mode(startup: Startup, theta0_rad: f64) -> StartupMode {
     match startup {
+        Startup::Auto => StartupMode::Auto,
         Startup::Ipd => StartupMode::Ipd,
         Startup::Align => StartupMode::Align,
         Startup::Known => StartupMode::Known(Angle::from_rad(theta0_rad)),

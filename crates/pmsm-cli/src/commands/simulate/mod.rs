@@ -19,9 +19,9 @@ pub mod run_loop;
 pub mod stats;
 
 pub use drive::{DriveSetup, build_drive};
-pub use output::{OUTPUT_COLUMNS, draw};
+pub use output::{OUTPUT_COLUMNS, draw, plotted_angle_error};
 pub use plant::build_plant;
-pub use report::{Phase, phases};
+pub use report::{Phase, phases, speed_ref_notice};
 pub use run_loop::{Row, Run, run_scenario, step_loop, wrap};
 
 use crate::scenario_file;
@@ -37,7 +37,9 @@ pub struct Args {
     /// One row per control sample (see the module docs for the columns).
     #[arg(long, value_name = "out.csv")]
     pub output: PathBuf,
-    /// Also draw speed, angle error and currents to this SVG file.
+    /// Also draw speed, angle error and currents to this SVG file (the angle error from when
+    /// the estimator runs: none during the detection or alignment; the CSV has both angles of
+    /// every sample).
     #[arg(long, value_name = "out.svg")]
     pub plot: Option<PathBuf>,
     /// If the drive trips, write the fault recorder's samples before the fault to this CSV

@@ -4,6 +4,7 @@ use super::Row;
 use crate::plot;
 use crate::scenario_file::Scenario;
 use anyhow::{Context, Result, anyhow, bail};
+use pmsm_core::DriveState;
 use std::io::Write as _;
 use std::path::Path;
 
@@ -73,7 +74,18 @@ pub(super) fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
     w.flush().map_err(err)
 }
 
-/// Draws speed, angle error and dq currents of a run to an SVG file.
+/// The angle error as the plot shows it: none (NaN, a gap) before the estimator runs (idle,
+/// initial position detection, alignment), where the estimate is not yet an estimate of
+/// anything; the CSV keeps both angles of every row.
+pub fn plotted_angle_error(r: &Row) -> f64 {
+    match r.state {
+        DriveState::Idle | DriveState::Ipd | DriveState::Align => f64::NAN,
+        _ => r.angle_error_rad(),
+    }
+}
+
+/// Draws speed, angle error (from when the estimator runs) and dq currents of a run to an SVG
+/// file.
 pub fn draw(path: &Path, sc: &Scenario, rows: &[Row]) -> Result<()> {
     let t: Vec<f64> = rows.iter().map(|r| r.t_s).collect();
     let col = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
@@ -82,7 +94,7 @@ pub fn draw(path: &Path, sc: &Scenario, rows: &[Row]) -> Result<()> {
         col(&|r| r.speed_rpm),
         col(&|r| r.speed_est_rpm),
     );
-    let err = col(&|r| r.angle_error_rad());
+    let err = col(&plotted_angle_error);
     let (id, iq, iqr) = (
         col(&|r| r.i_dq_a[0]),
         col(&|r| r.i_dq_a[1]),

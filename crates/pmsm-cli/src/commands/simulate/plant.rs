@@ -19,6 +19,9 @@ pub fn build_plant(sc: &Scenario, inverter: &InverterParams) -> Result<Plant> {
     let mut plant_inverter = InverterModel::new(*inverter, kind);
     plant_inverter.v_sat_v = sc.inverter.v_sat_v;
     plant_inverter.v_f_v = sc.inverter.v_f_v;
+    if let Some(band) = sc.inverter.sign_band_a {
+        plant_inverter.sign_band_a = band;
+    }
     let mut adc = AdcParams::from_inverter(inverter);
     adc.bits = sc.sensing.adc_bits.unwrap_or(12);
     adc.noise_rms_a = sc.sensing.noise_rms_a;

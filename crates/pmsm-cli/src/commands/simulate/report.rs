@@ -2,7 +2,7 @@
 //! table.
 
 use super::{Row, Run, wrap};
-use crate::scenario_file::Scenario;
+use crate::scenario_file::{ObserverKind, Scenario};
 use pmsm_core::DriveState;
 
 /// Statistics of one phase of a run (between two breakpoints of the references).
@@ -98,11 +98,11 @@ fn summarise(span_s: (f64, f64), span: &[&Row]) -> Option<Phase> {
 /// Prints what was run, the initial position found, one line per phase and the first fault.
 pub(super) fn print_summary(sc: &Scenario, result: &Run) {
     println!(
-        "pmsm simulate: {} on {}, {:?} estimator, start-up {:?}, {:.3} s at {:.0} Hz",
+        "pmsm simulate: {} on {}, {:?} estimator, start-up {}, {:.3} s at {:.0} Hz",
         sc.path.display(),
         sc.motor.name,
         sc.control.observer,
-        sc.control.startup,
+        startup_name(result.startup),
         sc.duration_s,
         sc.control.sample_hz.unwrap_or(sc.inverter.pwm_hz)
     );
@@ -118,6 +118,9 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
             "  speed reference above the maximum speed (above_max_speed) from t = {t:.4} s: \
              {asked:.0} r/min asked, {used:.0} r/min used"
         );
+    }
+    if let Some(notice) = speed_ref_notice(sc, &result.rows) {
+        println!("  {notice}");
     }
     if let Some(r) = result
         .rows
@@ -150,5 +153,45 @@ fn print_phases(phases: &[Phase]) {
                 ph.faults.join(", ")
             }
         );
+    }
+}
+
+/// When the closed loop held another speed than the reference (a back-EMF estimator below its
+/// least speed, `pmsm_core::SpeedRefLimit`): "speed reference X r/min below the NLO's minimum
+/// Y r/min: held at Y" with the last such reference, from the first such sample, and for how
+/// long.
+pub fn speed_ref_notice(sc: &Scenario, rows: &[Row]) -> Option<String> {
+    let first = rows.iter().find(|r| r.speed_ref_held_rpm.is_some())?;
+    let last = rows.iter().rev().find(|r| r.speed_ref_held_rpm.is_some())?;
+    let held = last.speed_ref_held_rpm?;
+    let n = rows
+        .iter()
+        .filter(|r| r.speed_ref_held_rpm.is_some())
+        .count();
+    let dt = rows.get(1).map_or(0.0, |r| r.t_s - rows[0].t_s);
+    let name = match sc.control.observer {
+        ObserverKind::Nlo => "NLO",
+        ObserverKind::Ao => "AO",
+        ObserverKind::MrasEmf => "MRAS on the EMF",
+        ObserverKind::MrasCurrent => "current-model MRAS",
+    };
+    Some(format!(
+        "speed reference {:.2} r/min below the {name}'s minimum {:.1} r/min: held at {:.1} r/min \
+         (from t = {:.3} s, {:.3} s in all)",
+        last.speed_ref_rpm,
+        held.abs(),
+        held,
+        first.t_s,
+        n as f64 * dt
+    ))
+}
+
+/// The start-up as the scenario file names it (`auto` shown resolved).
+fn startup_name(mode: pmsm_core::StartupMode) -> &'static str {
+    match mode {
+        pmsm_core::StartupMode::Ipd => "ipd",
+        pmsm_core::StartupMode::Align => "align",
+        pmsm_core::StartupMode::Known(_) => "known",
+        pmsm_core::StartupMode::Auto => "auto",
     }
 }

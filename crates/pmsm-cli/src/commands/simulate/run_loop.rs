@@ -42,6 +42,9 @@ pub struct Row {
     /// The estimator's health figure as the drive filters it, per unit (of `V_b` for the EMF
     /// estimators, of `I_b` for the current-model MRAS; 0 outside the closed loop).
     pub health: f64,
+    /// In the closed loop with the reference below the estimator's least speed
+    /// (`pmsm_core::SpeedRefLimit`): the reference the speed loop holds instead, r/min.
+    pub speed_ref_held_rpm: Option<f64>,
 }
 
 impl Row {
@@ -76,6 +79,8 @@ pub struct Run {
     /// The first speed reference the drive clamped to its maximum speed: time (s), the
     /// reference and the speed used (r/min).
     pub speed_ref_limited: Option<(f64, f64, f64)>,
+    /// The start-up the drive used (`auto` resolved).
+    pub startup: pmsm_core::StartupMode,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -110,14 +115,17 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
     let mut speed_ref_limited = None;
     let mut injector = Injector::new(&sc.faults);
     let mut recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
+    let startup = setup.drive.config().design.startup;
     setup.drive.start();
     for k in 0..n {
         let t = k as f64 / setup.sample_hz;
         let speed_ref_rpm = sc.speed_ref.at(t);
         let (input, out) = control_step(&mut setup, speed_ref_rpm, &sensed);
         recorder.record(k, &setup.drive, &input);
-        if let (None, Some(l)) = (speed_ref_limited, setup.drive.speed_ref_limit()) {
-            let rpm = setup.base.speed_rad_s(l.used) / setup.model.p() * 60.0 / TAU;
+        if let (None, Some(pmsm_core::SpeedRefLimit::AboveMaxSpeed { used, .. })) =
+            (speed_ref_limited, setup.drive.speed_ref_limit())
+        {
+            let rpm = setup.base.speed_rad_s(used) / setup.model.p() * 60.0 / TAU;
             speed_ref_limited = Some((t, speed_ref_rpm, rpm));
         }
         if ipd.is_none() {
@@ -140,6 +148,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         ipd,
         recorder,
         speed_ref_limited,
+        startup,
     })
 }
 
@@ -204,6 +213,14 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
         state: drive.state(),
         i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
         health: pmsm_core::to_f64(drive.health()),
+        speed_ref_held_rpm: match drive.speed_ref_limit() {
+            Some(pmsm_core::SpeedRefLimit::BelowEstimatorMinimum { held, .. })
+                if drive.state() == DriveState::Run =>
+            {
+                Some(base.speed_rad_s(held) / p * 60.0 / TAU)
+            }
+            _ => None,
+        },
     }
 }
 
