@@ -2,7 +2,7 @@
 //! period, what the drive is doing and why it stopped, and what it computed (telemetry).
 
 #[cfg(doc)]
-use super::{Drive, OpenLoopDesign};
+use super::{ACTIVE_SHORT, Drive, DriveConfig, OpenLoopDesign};
 use crate::angle::Angle;
 use crate::frames::{Abc, AlphaBeta, Dq};
 use crate::ipd::IpdFault;
