@@ -33,10 +33,7 @@ fn main() -> Result<()> {
             let dir = root().join("docs/figures");
             observers_motor_a::figures(&dir)?;
             drive_motor_b::figures(&dir)?;
-            eprintln!(
-                "wrote the figures of seeds 000 and 001 to {}",
-                dir.display()
-            );
+            eprintln!("wrote the figures of both papers to {}", dir.display());
             Ok(())
         }
         "sweep" => {
