@@ -138,7 +138,7 @@ fn terminal_short_trips_on_overcurrent() {
 /// estimated speed turns against the reference while the speed loop pushes at its limit, which
 /// trips `driven_backwards` (an estimate of the wrong sign) within 0.5 s, with the health
 /// check (model current error, eq. 16) on by default or off. A healthy drive trips neither, and
-/// its health figure stays far below the default limit (0.5 pu).
+/// its health figure stays far below the default limit (1.0 pu).
 #[test]
 fn health_figure_shows_a_lost_lock() {
     let with = |extra: &str| {

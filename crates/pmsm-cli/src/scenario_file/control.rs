@@ -67,7 +67,7 @@ pub struct Control {
     pub model_flux_factor: Option<f64>,
     /// Trip on loss of lock when the estimator's filtered health figure exceeds this in steady
     /// state, per unit (`Protection::health_limit_pu`; default
-    /// `pmsm_core::DEFAULT_HEALTH_LIMIT_PU`, 0.5; 0 turns the check off).
+    /// `pmsm_core::DEFAULT_HEALTH_LIMIT_PU`, 1.0; 0 turns the check off).
     pub health_limit_pu: Option<f64>,
     /// The dead time the drive's compensation is designed for, s (default: the inverter's
     /// `dead_time_s`; the plant keeps the inverter's).

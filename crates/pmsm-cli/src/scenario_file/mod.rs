@@ -25,7 +25,7 @@
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
 //! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
-//!                                  # (default 0.5; 0 = off)
+//!                                  # (default 1.0; 0 = off)
 //! mtpa = true                      # optional: maximum torque per ampere (interior motors)
 //! field_weakening = true           # optional: field weakening, speed clamped to the maximum
 //!
