@@ -4,36 +4,10 @@
 
 use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, window};
 use pmsm_cli::commands::simulate::{Run, run_scenario};
-use pmsm_cli::scenario_file::{self, Scenario};
 use pmsm_core::DriveState;
-use std::path::{Path, PathBuf};
 
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../examples")
-        .join(name)
-}
-
-/// The shipped scenario `name` with text replacements, written next to the examples so that
-/// its relative motor path still resolves.
-fn scenario(name: &str, edits: &[(&str, &str)]) -> Scenario {
-    let mut text = std::fs::read_to_string(example(name)).unwrap();
-    for (from, to) in edits {
-        assert!(text.contains(from), "{name} has no `{from}`");
-        text = text.replace(from, to);
-    }
-    let path = std::env::temp_dir().join(format!(
-        "pmsm-drive-motor-b-{}-{}.toml",
-        std::process::id(),
-        text.len()
-    ));
-    let motor_dir = example("").canonicalize().unwrap();
-    text = text.replace("motor = \"", &format!("motor = \"{}/", motor_dir.display()));
-    std::fs::write(&path, text).unwrap();
-    let sc = scenario_file::read(&path).unwrap();
-    std::fs::remove_file(&path).ok();
-    sc
-}
+mod common;
+use common::example_edited as scenario;
 
 fn no_fault(run: &Run) {
     if let Some(r) = run

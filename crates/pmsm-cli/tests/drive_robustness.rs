@@ -7,28 +7,10 @@
 #![allow(clippy::float_cmp)]
 
 use pmsm_cli::commands::simulate::{build_drive, build_plant, run_scenario};
-use pmsm_cli::scenario_file::{self, Scenario};
-use std::path::{Path, PathBuf};
+use pmsm_cli::scenario_file;
 
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../examples")
-        .join(name)
-}
-
-/// A scenario from `text`, its `motor = "…"` path taken relative to `examples/`.
-fn scenario_text(tag: &str, text: &str) -> Scenario {
-    let path = std::env::temp_dir().join(format!(
-        "pmsm-drive-robustness-{}-{tag}.toml",
-        std::process::id()
-    ));
-    let motor_dir = example("").canonicalize().unwrap();
-    let text = text.replace("motor = \"", &format!("motor = \"{}/", motor_dir.display()));
-    std::fs::write(&path, text).unwrap();
-    let sc = scenario_file::read(&path);
-    std::fs::remove_file(&path).ok();
-    sc.unwrap()
-}
+mod common;
+use common::{example, example_edited, scenario_text};
 
 const MOTOR_B_SHORT: &str = "duration_s = 0.8\nmotor = \"motor-b.toml\"\n\
     [inverter]\nvdc_v = 540.0\npwm_hz = 14000.0\ndead_time_s = 2e-6\n\
@@ -123,14 +105,6 @@ fn the_drive_is_told_its_dead_time_apart_from_the_plant() {
 }
 
 /// The shipped scenario `name` with text replacements.
-fn example_edited(name: &str, edits: &[(&str, &str)]) -> Scenario {
-    let mut text = std::fs::read_to_string(example(name)).unwrap();
-    for (from, to) in edits {
-        assert!(text.contains(from), "{name} has no `{from}`");
-        text = text.replace(from, to);
-    }
-    scenario_text(name, &text)
-}
 
 #[test]
 fn auto_start_up_aligns_a_surface_motor_and_detects_on_a_salient_one() {

@@ -48,3 +48,38 @@ pub fn read_columns(path: &Path) -> Vec<Vec<f64>> {
 pub fn s(path: &Path) -> &str {
     path.to_str().unwrap()
 }
+
+/// `examples/name` of the repository.
+pub fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples")
+        .join(name)
+}
+
+/// A scenario read from `text`, its `motor = "…"` path taken relative to `examples/` (written
+/// to a file of its own: tests of one binary run in parallel).
+pub fn scenario_text(tag: &str, text: &str) -> pmsm_cli::scenario_file::Scenario {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let path = std::env::temp_dir().join(format!(
+        "pmsm-scenario-{}-{}-{tag}.toml",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    let motor_dir = example("").canonicalize().unwrap();
+    let text = text.replace("motor = \"", &format!("motor = \"{}/", motor_dir.display()));
+    std::fs::write(&path, text).unwrap();
+    let sc = pmsm_cli::scenario_file::read(&path);
+    std::fs::remove_file(&path).ok();
+    sc.unwrap()
+}
+
+/// The shipped scenario `name` with text replacements, each of which must apply.
+pub fn example_edited(name: &str, edits: &[(&str, &str)]) -> pmsm_cli::scenario_file::Scenario {
+    let mut text = std::fs::read_to_string(example(name)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{name} has no `{from}`");
+        text = text.replace(from, to);
+    }
+    scenario_text(name, &text)
+}
