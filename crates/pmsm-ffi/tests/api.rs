@@ -4,35 +4,12 @@
 #![allow(unsafe_code)] // calling the extern "C" functions
 
 mod common;
+use common::{init, storage};
 
 use common::scenario::{self, CMD_CLEAR_FAULT, CMD_START, CMD_STOP, WORDS, Word};
 use core::ffi::{CStr, c_void};
 use core::ptr::{null, null_mut};
 use pmsm_ffi::*;
-
-fn storage() -> Box<pmsm_storage_t> {
-    Box::new(pmsm_storage_t {
-        words: [0; PMSM_STORAGE_WORDS],
-    })
-}
-
-fn init(s: &mut pmsm_storage_t, c: &pmsm_config_t) -> Result<*mut pmsm_drive_t, pmsm_status_t> {
-    let mut d = null_mut();
-    // SAFETY: valid storage, config and out pointer.
-    let r = unsafe {
-        pmsm_drive_init(
-            (s as *mut pmsm_storage_t).cast(),
-            size_of::<pmsm_storage_t>(),
-            c,
-            &mut d,
-        )
-    };
-    if r == pmsm_status_t::PMSM_OK {
-        Ok(d)
-    } else {
-        Err(r)
-    }
-}
 
 fn message(c: &pmsm_config_t) -> String {
     let mut buf = [0 as core::ffi::c_char; 200];

@@ -4,16 +4,11 @@
 #![allow(unsafe_code)] // calling the extern "C" functions
 
 mod common;
+use common::storage;
 
 use common::scenario::{self, CMD_CLEAR_FAULT, CMD_START, CMD_STOP, WORDS, Word};
 use core::ptr::{null, null_mut};
 use pmsm_ffi::*;
-
-fn storage() -> Box<pmsm_storage_t> {
-    Box::new(pmsm_storage_t {
-        words: [0; PMSM_STORAGE_WORDS],
-    })
-}
 
 /// The image of the recorded scenario's drive, freshly initialised.
 fn image() -> Vec<u8> {

@@ -4,6 +4,7 @@
 #![allow(unsafe_code)] // calling the extern "C" functions
 
 mod common;
+use common::storage;
 
 use core::ptr::null_mut;
 use pmsm_ffi::*;
@@ -21,24 +22,7 @@ fn init(s: &mut pmsm_storage_t) -> *mut pmsm_drive_t {
         startup: pmsm_startup_t::PMSM_STARTUP_KNOWN as u32,
         ..common::scenario::config_c()
     };
-    let mut d = null_mut();
-    // SAFETY: valid storage, config and out pointer.
-    let r = unsafe {
-        pmsm_drive_init(
-            (s as *mut pmsm_storage_t).cast(),
-            size_of::<pmsm_storage_t>(),
-            &c,
-            &mut d,
-        )
-    };
-    assert_eq!(r, pmsm_status_t::PMSM_OK);
-    d
-}
-
-fn storage() -> Box<pmsm_storage_t> {
-    Box::new(pmsm_storage_t {
-        words: [0; PMSM_STORAGE_WORDS],
-    })
+    common::init(s, &c).expect("a valid configuration")
 }
 
 /// Small, balanced currents, distinct at every sample (0.1 pu scale), and a bus that moves by
