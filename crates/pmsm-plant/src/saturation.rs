@@ -11,21 +11,25 @@
 //! With the flux-domain variable `u = (ψ_0 + L_d0 i_d)/ψ_s`:
 //!
 //! ```text
-//! ψ_d(i_d) = ψ_s tanh(u)      u ≥ 0   (d flux along the magnet: saturates toward ψ_s)
-//! ψ_d(i_d) = ψ_s u            u < 0   (d flux reversed: unsaturated, slope L_d0)
-//! ψ_0 = ψ_s atanh(ψ/ψ_s),  L_d0 = L_d / (1 − (ψ/ψ_s)²),  ψ_s > ψ
+//! ψ_d(i_d) = ψ_s tanh(u) + L_σ i_d    u ≥ 0   (d flux along the magnet: the iron saturates)
+//! ψ_d(i_d) = ψ_s u + L_σ i_d          u < 0   (d flux reversed: unsaturated, slope L_d0 + L_σ)
+//! ψ_0 = ψ_s atanh(ψ/ψ_s),  L_d0 = (L_d − L_σ) / (1 − (ψ/ψ_s)²),  ψ_s > ψ,  L_σ = 0.1 L_d
 //! ```
 //!
-//! so that the incremental inductance `L_inc = dψ_d/di_d = L_d0 sech²(u)` falls as `i_d` grows,
-//! and rises toward `L_d0` as current along −d cancels the magnet flux. Beyond the point where
-//! the d flux reverses (`i_d = −ψ_0/L_d0`, far below any drive current, about −11 A ≈ 4.5×
-//! rated on motor B) a symmetric tanh would saturate again in the reverse direction; the model
-//! instead stays at `L_d0` there (the two branches join with equal value, slope and curvature),
+//! so that the incremental inductance `L_inc = dψ_d/di_d = L_d0 sech²(u) + L_σ` falls as `i_d`
+//! grows, and rises toward `L_d0 + L_σ` as current along −d cancels the magnet flux. The
+//! leakage (air-path) inductance `L_σ` ([`LEAKAGE_FRACTION`] of `L_d`) is what a saturated iron
+//! leaves: without it `L_inc` would fall to zero and the current derivative grow without bound
+//! under a strong +d pulse (a motor file with `ψ_s` close to `ψ` made the plant diverge).
+//!
+//! Beyond the point where the iron's d flux reverses (`i_d = −ψ_0/L_d0`, far below any drive
+//! current, about −12.7 A ≈ 5× rated on motor B) a symmetric tanh would saturate again in the
+//! reverse direction; the model instead stays at `L_d0 + L_σ` there (the two branches join with equal value, slope and curvature),
 //! so `L_inc` never increases with `i_d`, and deep −d current cannot make the equations stiff.
 //!
 //! The stored field energy `∫₀^{i_d} i dψ_d(i)` is analytic (integration by parts:
 //! `i ψ_d(i) − (ψ_s²/L_d0)(G(u) − G(u_0))` with `G = ln cosh` on the tanh branch and `u²/2` on
-//! the linear one); the magnet flux contributes nothing at `i_d = 0`.
+//! the linear one), plus `L_σ i_d²/2`; the magnet flux contributes nothing at `i_d = 0`.
 
 use pmsm_core::{MotorParams, ParamError, ParamReason, in_range};
 
@@ -38,6 +42,11 @@ use pmsm_core::{MotorParams, ParamError, ParamReason, in_range};
 /// inside the 5–15 % wanted for a clear but not exaggerated polarity signal. Smaller `k`
 /// saturates harder (k = 3: 19 %, k = 2: 38 %), larger is milder (k = 5: 8 %, k = 8: 3.6 %).
 pub const DEFAULT_STRENGTH: f64 = 4.0;
+
+/// Leakage inductance `L_σ` of the tanh model as a fraction of `L_d`: the floor of the
+/// incremental inductance when the iron is saturated (the flux paths through air: slot and
+/// end-winding leakage, typically 5–20 % of `L_d` in small PMSMs).
+pub const LEAKAGE_FRACTION: f64 = 0.1;
 
 /// Model of the d-axis flux linkage `ψ_d(i_d)`; the q axis stays linear (`ψ_q = L_q i_q`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,8 +131,8 @@ impl Saturation {
         DAxis::new(self, params).energy_j(i_d_a)
     }
 
-    /// d current at which the d flux reverses (`ψ_d = 0`), A; below it the tanh model is
-    /// linear with slope `L_d0`. `None` for the linear model.
+    /// d current at which the iron's d flux reverses (`u = 0`), A; below it the tanh model is
+    /// linear with slope `L_d0 + L_σ`. `None` for the linear model.
     pub fn zero_flux_current_a(&self, params: &MotorParams) -> Option<f64> {
         match DAxis::new(self, params) {
             DAxis::Linear { .. } => None,
@@ -143,6 +152,7 @@ pub(crate) enum DAxis {
         psi_s_wb: f64,
         psi0_wb: f64,
         ld0_h: f64,
+        leak_h: f64,
     },
 }
 
@@ -155,10 +165,12 @@ impl DAxis {
             },
             Saturation::Tanh { psi_s_wb } => {
                 let r = params.flux_wb / psi_s_wb;
+                let leak_h = LEAKAGE_FRACTION * params.ld_h;
                 DAxis::Tanh {
                     psi_s_wb,
                     psi0_wb: psi_s_wb * libm::atanh(r),
-                    ld0_h: params.ld_h / (1.0 - r * r),
+                    ld0_h: (params.ld_h - leak_h) / (1.0 - r * r),
+                    leak_h,
                 }
             }
         }
@@ -176,16 +188,18 @@ impl DAxis {
                 psi_s_wb,
                 psi0_wb,
                 ld0_h,
+                leak_h,
             } => {
                 let u = (psi0_wb + ld0_h * i_d_a) / psi_s_wb;
+                let leak = leak_h * i_d_a;
                 if u >= 0.0 {
                     // tanh and sech² through e^{−2u} ≤ 1: no overflow for large u.
                     let e = libm::exp(-2.0 * u);
                     let tanh = (1.0 - e) / (1.0 + e);
                     let sech2 = 4.0 * e / ((1.0 + e) * (1.0 + e));
-                    (psi_s_wb * tanh, ld0_h * sech2)
+                    (psi_s_wb * tanh + leak, ld0_h * sech2 + leak_h)
                 } else {
-                    (psi_s_wb * u, ld0_h)
+                    (psi_s_wb * u + leak, ld0_h + leak_h)
                 }
             }
         }
@@ -199,12 +213,16 @@ impl DAxis {
                 psi_s_wb,
                 psi0_wb,
                 ld0_h,
+                leak_h,
             } => {
-                // Integration by parts: i ψ_d(i) − ∫₀^i ψ_d, with ∫ψ_d di = (ψ_s²/L_d0) ∫ g(u) du.
+                // Integration by parts on the iron's part: i ψ_iron(i) − ∫₀^i ψ_iron, with
+                // ∫ψ_iron di = (ψ_s²/L_d0) ∫ g(u) du; the leakage's is L_σ i²/2.
                 let u0 = psi0_wb / psi_s_wb;
                 let u = (psi0_wb + ld0_h * i_d_a) / psi_s_wb;
                 let g_int = |u: f64| if u >= 0.0 { ln_cosh(u) } else { 0.5 * u * u };
-                i_d_a * self.flux_wb(i_d_a) - psi_s_wb * psi_s_wb / ld0_h * (g_int(u) - g_int(u0))
+                let iron = self.flux_wb(i_d_a) - leak_h * i_d_a;
+                i_d_a * iron - psi_s_wb * psi_s_wb / ld0_h * (g_int(u) - g_int(u0))
+                    + 0.5 * leak_h * i_d_a * i_d_a
             }
         }
     }
@@ -264,6 +282,26 @@ mod tests {
         // Saturation is real but not absurd at 3 I_ref: L_inc(3 I_ref)/L_d in (0.2, 0.9).
         let ratio = sat.inductance_d_h(&m, 3.0 * i_ref) / m.ld_h;
         assert!(ratio > 0.2 && ratio < 0.9, "ratio {ratio}");
+    }
+
+    #[test]
+    fn saturated_inductance_keeps_the_leakage_floor() {
+        // ψ_s barely above ψ (an iron already near saturation at no current): deep in
+        // saturation the incremental inductance falls to the leakage, never below it.
+        let mut m = motor_b();
+        m.flux_wb = 0.288;
+        let sat = Saturation::Tanh { psi_s_wb: 0.35 };
+        assert_eq!(sat.validate(&m), Ok(()));
+        let leak = LEAKAGE_FRACTION * m.ld_h;
+        let i_ref = Saturation::reference_current_a(&m);
+        for k in 0..=100 {
+            let i = 20.0 * i_ref * k as f64 / 100.0;
+            let l = sat.inductance_d_h(&m, i);
+            assert!(l >= leak * (1.0 - 1e-12) && l.is_finite(), "{i} A: {l} H");
+        }
+        let deep = sat.inductance_d_h(&m, 20.0 * i_ref);
+        assert!(deep < 1.01 * leak, "at 20 I_ref: {deep} H vs L_σ {leak} H");
+        assert!((sat.inductance_d_h(&m, 0.0) - m.ld_h).abs() < 1e-9 * m.ld_h);
     }
 
     #[test]
