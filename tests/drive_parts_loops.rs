@@ -423,6 +423,10 @@ struct SpeedRun {
     motor: Motor,
     current: CurrentController,
     speed: SpeedController,
+    /// The speed loop runs once every `decimation` samples, as in the drive.
+    decimation: u32,
+    k: u32,
+    iq_ref: Pu,
 }
 
 impl SpeedRun {
@@ -437,6 +441,9 @@ impl SpeedRun {
             motor,
             current: CurrentController::new(cc),
             speed: SpeedController::new(sc),
+            decimation: design.decimation,
+            k: 0,
+            iq_ref: Pu::ZERO,
         }
     }
 
@@ -447,7 +454,11 @@ impl SpeedRun {
         let th = self.motor.state().theta_e_rad;
         let w = self.motor.omega_e_rad_s();
         let i = park(self.motor.i_alpha_beta(), th);
-        let iq_ref = self.speed.step(b.speed_pu(w_ref), b.speed_pu(w)).iq_ref;
+        if self.k % self.decimation == 0 {
+            self.iq_ref = self.speed.step(b.speed_pu(w_ref), b.speed_pu(w)).iq_ref;
+        }
+        self.k += 1;
+        let iq_ref = self.iq_ref;
         let out = self.current.step(&CurrentInput {
             i_ref: Dq {
                 d: Pu::ZERO,

@@ -218,10 +218,12 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
     // The 24 V servo at +90 r/min, known start, a load above its rated torque from 0.2 s: for
     // each estimator, the first sample with the true speed below zero after the load, and
     // the first fault.
+    // The AO's drive may see the wrong-way speed pass its overspeed limit first: also named,
+    // and the active short is the right output there.
     for (observer, expected) in [
-        ("mras-current", "loss_of_lock"),
-        ("nlo", "driven_backwards"),
-        ("ao", "driven_backwards"),
+        ("mras-current", &["loss_of_lock"][..]),
+        ("nlo", &["driven_backwards"][..]),
+        ("ao", &["driven_backwards", "overspeed"][..]),
     ] {
         let sc = example_edited(
             "servo-24v-backwards.toml",
@@ -257,7 +259,11 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
             fault.t_s
         );
         assert!(delay_ms < 100.0, "{observer}: {delay_ms} ms");
-        assert_eq!(fault.fault(), expected, "{observer}");
+        assert!(
+            expected.contains(&fault.fault()),
+            "{observer}: {} not in {expected:?}",
+            fault.fault()
+        );
     }
 }
 

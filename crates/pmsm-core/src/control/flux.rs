@@ -16,17 +16,21 @@
 //!
 //! # Discretisation and cost
 //!
-//! The update runs on alternate samples of the closed loop (period `T = 2 T_s`): odd samples
-//! the MTPA current and the integrator, even samples the `i_q` limit. Neither square root is
-//! taken: both are tracked by one iteration per update whose fixed point is the root (a
-//! square root costs ~60 instructions, and the configuration must stay a few words for the
-//! 16 KiB of the smallest target). MTPA: `f = i_q² − i_d² + 2a i_d` vanishes on the law and
-//! grows with `i_d`, so `i_d ← i_d − g f/(2|a|)` converges to it (pole `1 − g(1 − i_d/a)`,
-//! `g` = 0.1). Circle: `y ← y + g (I_max² − i_d² − y²)/(2 I_max)` converges to
-//! `√(I_max² − i_d²)`. Each is three products; the integrator three (two squares, the gain).
+//! The drive runs its outer loops in slots (docs/drive.md, "outer loops"): the speed loop on
+//! even samples, and here one update on each odd sample, over a cycle of eight: the MTPA
+//! current in slot 1, the integrator in slots 3 and 7, the `i_q` limit in slot 5 (the MTPA
+//! current and the limit every `8 T_s`, the integrator every `T = 4 T_s`), so that no sample
+//! pays for more than one outer update. Neither square root is taken: both are tracked by one
+//! iteration per update whose fixed point is the root (a square root costs ~60 instructions,
+//! and the configuration must stay a few words for the 16 KiB of the smallest target). MTPA:
+//! `f = i_q² − i_d² + 2a i_d` vanishes on the law and grows with `i_d`, so
+//! `i_d ← i_d − g f/(2|a|)` converges to it (pole `1 − g(1 − i_d/a)`, `g` = 0.4). Circle:
+//! `y ← y + g (I_max² − i_d² − y²)/(2 I_max)` converges to `√(I_max² − i_d²)`. Each is three
+//! products; the integrator two squares and the gain, `(k V_max)²` being kept from the last
+//! bus reading.
 //!
 //! With `|v| ≈ ω (ψ + L_d i_d)` the loop is `d|v|²/dΔ ≈ 2 |v| ω L_d`, and the gain
-//! `K_fw = ω_fw T / 2` (per unit) puts its pole near `ω_fw` where `|v| ω L_d ≈ 1`
+//! `K_fw = ω_fw T / 2` (per unit, `T = 4 T_s`) puts its pole near `ω_fw` where `|v| ω L_d ≈ 1`
 //! (default `ω_fw = 0.02/T_s`, 280 rad/s at 14 kHz, below the current loops' 700 rad/s).
 //!
 //! # Formats
@@ -62,15 +66,16 @@ const MARGIN_Q31: Coef<31> = Coef::from_bits((VOLTAGE_MARGIN * 2_147_483_648.0) 
 /// [`K_FW`] in Q1.31.
 const K_FW_Q31: Coef<31> = Coef::from_bits((K_FW * 2_147_483_648.0) as i32);
 
-/// Pole of the MTPA and circle iterations per update (`g`): about 1.4 ms to settle at 14 kHz.
-const TRACK_POLE: f64 = 0.1;
+/// Pole of the MTPA and circle iterations per update (`g`, one update every eight samples):
+/// about 1.4 ms to settle at 14 kHz.
+const TRACK_POLE: f64 = 0.4;
 
 /// Fraction `k` of the modulator's circle the field weakening holds the voltage at.
 pub const VOLTAGE_MARGIN: f64 = 0.97;
 
-/// Gain `K_fw` of the field-weakening integrator per update, `ω_fw T/2` with `T = 2 T_s` and
+/// Gain `K_fw` of the field-weakening integrator per update, `ω_fw T/2` with `T = 4 T_s` and
 /// `ω_fw = 0.02/T_s` (280 rad/s at 14 kHz, below the current loops' default 700 rad/s).
-const K_FW: f64 = 0.02;
+const K_FW: f64 = 0.04;
 
 /// How the d-axis reference is made (both off by default: the paper's `i_d = 0`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -224,8 +229,9 @@ pub struct FluxController {
     delta: Pu,
     /// `|i_q*|` limit.
     iq_max: Pu,
-    /// Bit 0 set: this sample updates `i_d*` (else the `i_q` limit).
-    phase: u8,
+    /// The circle's radius of the last update and `(k V_max)²` from it (Q.48).
+    v_max: Pu,
+    lim_sq: i64,
 }
 
 impl FluxController {
@@ -258,54 +264,89 @@ impl FluxController {
         self.iq_max
     }
 
-    /// The current reference for the speed loop's `iq`, given the vector `v` the modulator
-    /// made at the last sample and its circle's radius `v_max`. Out of line: its 64-bit
-    /// temporaries would otherwise enlarge the drive step's frame on ARMv6-M even when off.
-    #[inline(never)]
-    pub fn step(&mut self, c: &FluxConfig, iq: Pu, v: AlphaBeta, v_max: Pu) -> Dq {
-        self.phase ^= 1;
-        if self.phase != 0 {
-            // MTPA: f = i_q² − i_d² + 2a i_d is zero on the law and grows with i_d (for
-            // i_d < a): one step of i_d ← i_d − g f/(2|a|) per update (Q.48 to Q.24).
-            let (q, d) = (iq.to_bits(), self.id_mtpa.to_bits());
-            let f = wmul(q, q) - wmul(d, d) + (c.two_a.wide(d) << 4);
-            let f = sat_i32(f >> 24);
-            let id_mtpa = self
-                .id_mtpa
-                .saturating_sub(Pu::from_bits(c.k_mtpa.apply_bits(f)));
-            // Within [−I_max, 0] for L_q > L_d (a > 0), [0, I_max] otherwise.
-            self.id_mtpa = if c.two_a.bits() >= 0 {
-                id_mtpa.min(Pu::ZERO).max(c.i_max.saturating_neg())
-            } else {
-                id_mtpa.min(c.i_max).max(Pu::ZERO)
-            };
-            // Field weakening: (k V_max)² − |v|², Q.48 to Q.24.
-            let lim = frac_mul(MARGIN_Q31, v_max.to_bits());
-            let v2 = wmul(v.alpha.to_bits(), v.alpha.to_bits())
-                + wmul(v.beta.to_bits(), v.beta.to_bits());
-            let err = sat_i32((wmul(lim, lim) - v2) >> 24);
-            let step = round_shift_sat(K_FW_Q31.wide(err), 31);
-            // Anti-windup: Δ within [−I_d,lim − i_d,MTPA, 0].
-            let lo = c.id_min.saturating_sub(self.id_mtpa).min(Pu::ZERO);
-            self.delta = Pu::from_bits(self.delta.to_bits().saturating_add(step))
-                .min(Pu::ZERO)
-                .max(lo);
-        } else {
-            // √(I_max² − i_d²) by one iteration y ← y + g (I_max² − i_d² − y²)/(2 I_max)
-            // per update (the fixed point is the root; i_d moves slowly).
-            let (d, y) = (self.id().to_bits(), self.iq_max.to_bits());
-            let e =
-                sat_i32(((i64::from(c.i_max_sq.to_bits()) << 24) - wmul(d, d) - wmul(y, y)) >> 24);
-            self.iq_max = self
-                .iq_max
-                .saturating_add(Pu::from_bits(c.k_circle.apply_bits(e)))
-                .min(c.i_max)
-                .max(Pu::ZERO);
-        }
+    /// The current reference for the speed loop's `iq` as the last updates left it:
+    /// `i_d* = i_d,MTPA + Δ`, `i_q*` within the current circle.
+    #[inline(always)]
+    pub fn reference(&self, iq: Pu) -> Dq {
         Dq {
             d: self.id(),
             q: iq.min(self.iq_max).max(self.iq_max.saturating_neg()),
         }
+    }
+
+    /// One update of the MTPA current for the speed loop's `iq` (the drive's slot 1). Out of
+    /// line, as the two below: their 64-bit temporaries would otherwise enlarge the drive
+    /// step's frame on ARMv6-M even when off.
+    #[inline(never)]
+    pub fn update_mtpa(&mut self, c: &FluxConfig, iq: Pu) {
+        // MTPA: f = i_q² − i_d² + 2a i_d is zero on the law and grows with i_d (for
+        // i_d < a): one step of i_d ← i_d − g f/(2|a|) per update (Q.48 to Q.24).
+        let (q, d) = (iq.to_bits(), self.id_mtpa.to_bits());
+        let f = wmul(q, q) - wmul(d, d) + (c.two_a.wide(d) << 4);
+        let f = sat_i32(f >> 24);
+        let id_mtpa = self
+            .id_mtpa
+            .saturating_sub(Pu::from_bits(c.k_mtpa.apply_bits(f)));
+        // Within [−I_max, 0] for L_q > L_d (a > 0), [0, I_max] otherwise.
+        self.id_mtpa = if c.two_a.bits() >= 0 {
+            id_mtpa.min(Pu::ZERO).max(c.i_max.saturating_neg())
+        } else {
+            id_mtpa.min(c.i_max).max(Pu::ZERO)
+        };
+    }
+
+    /// One update of the field-weakening integrator from the vector `v` the modulator made
+    /// at the last sample and its circle's radius `v_max` (the drive's slots 3 and 7).
+    #[inline(never)]
+    pub fn update_fw(&mut self, c: &FluxConfig, v: &AlphaBeta, v_max: Pu) {
+        // Field weakening: (k V_max)² − |v|², Q.48 to Q.24; (k V_max)² is recomputed
+        // only when the bus reading changes.
+        if v_max != self.v_max {
+            let lim = frac_mul(MARGIN_Q31, v_max.to_bits());
+            self.v_max = v_max;
+            self.lim_sq = wmul(lim, lim);
+        }
+        let v2 =
+            wmul(v.alpha.to_bits(), v.alpha.to_bits()) + wmul(v.beta.to_bits(), v.beta.to_bits());
+        let err = sat_i32((self.lim_sq - v2) >> 24);
+        let step = round_shift_sat(K_FW_Q31.wide(err), 31);
+        // Anti-windup: Δ within [−I_d,lim − i_d,MTPA, 0].
+        let lo = c.id_min.saturating_sub(self.id_mtpa).min(Pu::ZERO);
+        self.delta = Pu::from_bits(self.delta.to_bits().saturating_add(step))
+            .min(Pu::ZERO)
+            .max(lo);
+    }
+
+    /// One update of the `|i_q*|` limit (the drive's slot 5).
+    #[inline(never)]
+    pub fn update_circle(&mut self, c: &FluxConfig) {
+        // √(I_max² − i_d²) by one iteration y ← y + g (I_max² − i_d² − y²)/(2 I_max)
+        // per update (the fixed point is the root; i_d moves slowly).
+        let (d, y) = (self.id().to_bits(), self.iq_max.to_bits());
+        let e = sat_i32(((i64::from(c.i_max_sq.to_bits()) << 24) - wmul(d, d) - wmul(y, y)) >> 24);
+        self.iq_max = self
+            .iq_max
+            .saturating_add(Pu::from_bits(c.k_circle.apply_bits(e)))
+            .min(c.i_max)
+            .max(Pu::ZERO);
+    }
+
+    /// The update of the drive's outer-loop slot `slot` (0–7): 1 the MTPA current, 3 and 7
+    /// the field-weakening integrator, 5 the `i_q` limit; even slots none (the speed loop's).
+    #[inline(always)]
+    pub fn update(&mut self, c: &FluxConfig, slot: u8, iq: Pu, v: &AlphaBeta, v_max: Pu) {
+        match slot {
+            1 => self.update_mtpa(c, iq),
+            3 | 7 => self.update_fw(c, v, v_max),
+            5 => self.update_circle(c),
+            _ => {}
+        }
+    }
+
+    /// [`FluxController::update`] for `slot`, then [`FluxController::reference`].
+    pub fn step(&mut self, c: &FluxConfig, slot: u8, iq: Pu, v: AlphaBeta, v_max: Pu) -> Dq {
+        self.update(c, slot, iq, &v, v_max);
+        self.reference(iq)
     }
 }
 
@@ -333,8 +374,8 @@ mod tests {
             beta: Pu::ZERO,
         };
         let mut out = Dq::default();
-        for _ in 0..20_000 {
-            out = f.step(c, pu_from_f64(iq), inside, Pu::from_num(1));
+        for k in 0..40_000u32 {
+            out = f.step(c, (k % 8) as u8, pu_from_f64(iq), inside, Pu::from_num(1));
         }
         out
     }

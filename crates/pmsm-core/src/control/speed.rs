@@ -81,6 +81,11 @@ const KI_MAX: f64 = 1.0 - 1.0 / 2_147_483_648.0;
 /// Default `ω_n T_s` of the speed loop (a tenth of the current loop's default).
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.005;
 
+/// Default [`SpeedDesign::decimation`]: the speed loop on the drive's even samples, the
+/// d-axis reference's updates on the odd ones (7 kHz at 14 kHz, 100 times the default
+/// bandwidth `ω_n = 0.005/T_s`; docs/drive.md, "outer loops").
+pub const DEFAULT_DECIMATION: u32 = 2;
+
 /// How the speed controller is designed; [`SpeedDesign::default_for`] gives the defaults.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpeedDesign {
@@ -90,7 +95,8 @@ pub struct SpeedDesign {
     pub damping: f64,
     /// Current limit `I_max`, A peak.
     pub current_limit_a: f64,
-    /// The speed loop runs once every `decimation` control samples (≥ 1).
+    /// The speed loop runs once every `decimation` control samples (≥ 1; the drive takes 1,
+    /// 2 or 4: its outer-loop slots, docs/drive.md); the gains are designed for that period.
     pub decimation: u32,
     /// `(K_iΩ, K_pΩ)` in A/(rad/s · s) and A/(rad/s) of electrical speed, overriding the
     /// design from `ω_n` and `ζ`.
@@ -98,13 +104,14 @@ pub struct SpeedDesign {
 }
 
 impl SpeedDesign {
-    /// `ω_n = 0.005/T_s`, `ζ = 1`, `I_max = I_b` (rated peak), every sample.
+    /// `ω_n = 0.005/T_s`, `ζ = 1`, `I_max = I_b` (rated peak), once every
+    /// [`DEFAULT_DECIMATION`] samples.
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
             bandwidth_rad_s: DEFAULT_BANDWIDTH_TS / base.sample_s,
             damping: 1.0,
             current_limit_a: base.current_a,
-            decimation: 1,
+            decimation: DEFAULT_DECIMATION,
             gains: None,
         }
     }

@@ -14,7 +14,7 @@ use crate::observer::{
     AoConfig, EstimatorConfig, EstimatorKind, MrasCurrentConfig, MrasCurrentGains, MrasEmfConfig,
     NloConfig, default_observer_gain,
 };
-use crate::params::{InverterParams, MotorParams, in_range, positive};
+use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, positive};
 use crate::svpwm::SvpwmConfig;
 use crate::units::PerUnit;
 
@@ -246,6 +246,11 @@ pub struct DriveConfig {
     pub estimator: EstimatorConfig,
     pub(crate) current: CurrentConfig,
     pub(crate) speed: SpeedConfig,
+    /// The speed loop runs in the slots `k` with `k & speed_mask == 0` (mask 0, 1 or 3: every
+    /// 1, 2 or 4 samples, [`SpeedDesign::decimation`]).
+    pub(crate) speed_mask: u8,
+    /// `log2` of the decimation: the speed loop sees the mean of its period's speeds.
+    pub(crate) speed_shift: u32,
     /// Pole of the speed filter, `1 − exp(−ω_f T_s)`; `None`: no filter.
     pub(crate) speed_filter: Option<crate::num::Coef<30>>,
     pub(crate) deadtime: DeadTimeConfig,
@@ -357,6 +362,23 @@ impl DriveConfig {
             base.omega_e_rad_s,
         )?;
         in_range("open_loop.align_time_s", ol.align_time_s, 0.0, 100.0)?;
+        // The drive runs the speed loop on its even slots (every 2 or 4 samples), or on every
+        // sample.
+        let (speed_mask, speed_shift) = match design.speed.decimation {
+            1 => (0, 0),
+            2 => (1, 1),
+            4 => (3, 2),
+            d => {
+                return Err(ConfigError::Param(ParamError {
+                    key: "speed.decimation",
+                    reason: if d == 0 || d > 4 {
+                        ParamReason::OutOfRange { min: 1.0, max: 4.0 }
+                    } else {
+                        ParamReason::Inconsistent("the drive's outer-loop slots (1, 2 or 4)")
+                    },
+                }));
+            }
+        };
         let p = design.protection;
         positive("protection.overcurrent_a", p.overcurrent_a)?;
         positive("protection.vdc_min_v", p.vdc_min_v)?;
@@ -365,6 +387,8 @@ impl DriveConfig {
             estimator,
             current: CurrentConfig::new(motor, &base, design.current)?,
             speed: SpeedConfig::new(motor, &base, design.speed)?,
+            speed_mask,
+            speed_shift,
             speed_filter: match design.speed_filter_rad_s {
                 None => None,
                 Some(w) => {

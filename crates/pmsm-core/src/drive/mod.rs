@@ -54,6 +54,11 @@ pub struct Drive {
     speed_ref: Pu,
     /// Filtered estimated speed for the speed loop.
     speed_filtered: Pu,
+    /// Sum of the filtered speed over the speed loop's period, each term scaled by
+    /// `1/decimation` (bits shifted right): the speed loop sees the period's mean, not one
+    /// sample of it (a sample at a fixed phase of what the loop's own step excites biased
+    /// the speed by 2 % at no load).
+    speed_sum: Pu,
     /// Voltage applied over the current period, as the estimator should see it.
     v_est: AlphaBeta,
     telemetry: Telemetry,
@@ -67,6 +72,10 @@ pub struct Drive {
     deadtime_bus: DeadTimeBus,
     /// The d-axis reference (MTPA, field weakening).
     flux: FluxController,
+    /// The slot of this sample (0–7): the speed loop and the d-axis reference's updates take
+    /// turns, and the monitor's two halves alternate with its parity, so that no sample pays
+    /// for all of them.
+    slot: u8,
 }
 
 impl Drive {
@@ -85,6 +94,7 @@ impl Drive {
             state: DriveState::Idle,
             speed_ref: Pu::ZERO,
             speed_filtered: Pu::ZERO,
+            speed_sum: Pu::ZERO,
             v_est: AlphaBeta::default(),
             telemetry: Telemetry::default(),
             ipd_result: None,
@@ -92,7 +102,12 @@ impl Drive {
             iq_ref: Pu::ZERO,
             inv_vdc: BusReciprocal::default(),
             deadtime_bus: DeadTimeBus::default(),
-            flux: FluxController::default(),
+            flux: {
+                let mut f = FluxController::default();
+                f.reset(&config.flux);
+                f
+            },
+            slot: 0,
         }
     }
 
@@ -190,6 +205,11 @@ impl Drive {
         self.current.reset();
         self.flux.reset(&self.config.flux);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
+        self.iq_ref = Pu::ZERO;
+        // The first sample of the closed loop is slot 0: it runs the speed loop, on that
+        // sample's speed alone.
+        self.slot = LAST_SLOT;
+        self.speed_sum = Pu::ZERO;
         if self.estimator.kind().needs_open_loop_start() {
             self.open_loop = OpenLoop::start(theta, self.speed_ref < Pu::ZERO);
             DriveState::OpenLoop
@@ -228,6 +248,8 @@ impl Drive {
         if let Some(fault) = self.protection(input) {
             return self.trip(fault);
         }
+        // The slot of this sample (outer loops, monitor halves).
+        self.slot = (self.slot + 1) & LAST_SLOT;
         let i = clarke(input.i_abc);
         let estimate = self.estimate(i);
         let omega_ref = self.run_speed_ref();
@@ -284,8 +306,12 @@ impl Drive {
             iq_ref: self.iq_ref,
             running: self.state == DriveState::Run,
         };
-        self.monitor
-            .check(&self.config.monitor, &signals, &self.estimator)
+        self.monitor.check(
+            &self.config.monitor,
+            &signals,
+            &self.estimator,
+            self.slot & 1 != 0,
+        )
     }
 
     /// One sample of the initial position detection, which drives the PWM itself; on success
@@ -339,7 +365,10 @@ impl Drive {
             let iq = self.open_loop.handover(estimate, &self.config)?;
             self.speed_filtered = estimate.omega;
             self.speed.reset(estimate.omega, iq);
+            self.iq_ref = iq;
             self.flux.reset(&self.config.flux);
+            self.slot = LAST_SLOT;
+            self.speed_sum = Pu::ZERO;
             self.state = DriveState::Run;
         }
         Ok(Setpoint {
@@ -350,23 +379,37 @@ impl Drive {
         })
     }
 
-    /// The closed loop: the speed loop sets `i_q*` in the estimated frame.
+    /// The closed loop: the speed loop sets `i_q*` in the estimated frame. The outer loops
+    /// take turns over eight samples (docs/drive.md, "outer loops"): the speed loop on even
+    /// slots (every 2 samples by default, its decimation), the d-axis reference's updates on
+    /// odd ones; the references hold in between.
     #[inline(always)]
     fn speed_loop(&mut self, omega_ref: Pu, estimate: &Estimate) -> Setpoint {
-        let speed = self.speed.step(omega_ref, self.speed_filtered);
-        self.iq_ref = speed.iq_ref;
-        let i_ref = if self.config.flux.enabled() {
-            // The modulator's vector and circle of the last sample (docs/field-weakening.md).
-            self.flux.step(
-                &self.config.flux,
-                speed.iq_ref,
-                self.telemetry.v,
-                self.inv_vdc.v_max(),
-            )
+        let c = &self.config;
+        self.speed_sum = self.speed_sum.saturating_add(Pu::from_bits(
+            self.speed_filtered.to_bits() >> c.speed_shift,
+        ));
+        if self.slot & c.speed_mask == 0 {
+            self.iq_ref = self.speed.step(omega_ref, self.speed_sum).iq_ref;
+            self.speed_sum = Pu::ZERO;
+        }
+        let i_ref = if c.flux.enabled() {
+            if self.slot & 1 != 0 {
+                // The modulator's vector and circle of the last sample
+                // (docs/field-weakening.md).
+                self.flux.update(
+                    &c.flux,
+                    self.slot,
+                    self.iq_ref,
+                    &self.telemetry.v,
+                    self.inv_vdc.v_max(),
+                );
+            }
+            self.flux.reference(self.iq_ref)
         } else {
             Dq {
                 d: Pu::ZERO,
-                q: speed.iq_ref,
+                q: self.iq_ref,
             }
         };
         Setpoint {
@@ -520,6 +563,10 @@ impl Drive {
         }
     }
 }
+
+/// The last of the eight outer-loop slots (they count modulo 8): the speed loop on even slots
+/// (every 2 or 4 samples, or on every sample), the d-axis reference's updates on odd ones.
+const LAST_SLOT: u8 = 7;
 
 /// What the current loops track at one sample: the frame they run in and the reference.
 #[derive(Clone, Copy, Debug)]

@@ -152,8 +152,6 @@ pub(crate) struct Monitor {
     weak: [u64; 3],
     /// Samples the phase-loss test's conditions have held.
     armed: u32,
-    /// This sample is odd (stall and loss of lock) rather than even (phase loss).
-    odd: bool,
     /// The estimator's health figure, filtered.
     health: Pu,
     stall: u32,
@@ -186,8 +184,15 @@ impl Monitor {
         *self = Self::default();
     }
 
-    /// One sample of every check; the first fault found.
-    pub fn check(&mut self, c: &MonitorConfig, s: &Signals, e: &AnyEstimator) -> Option<Fault> {
+    /// One sample of every check; the first fault found. `odd`: this sample runs the stall
+    /// and loss-of-lock checks, else the phase-loss check (the drive's sample count's parity).
+    pub fn check(
+        &mut self,
+        c: &MonitorConfig,
+        s: &Signals,
+        e: &AnyEstimator,
+        odd: bool,
+    ) -> Option<Fault> {
         let ph = [s.i_abc.a, s.i_abc.b, s.i_abc.c];
         // Three currents of a star winding sum to zero.
         let sum = s
@@ -233,8 +238,7 @@ impl Monitor {
         // The slower checks alternate, so that no sample pays for all of them: phase loss on
         // even samples, stall and loss of lock on odd ones (their counts and filters are in
         // steps of two samples).
-        self.odd = !self.odd;
-        if self.odd {
+        if odd {
             return self.check_motion(c, s, speed, e);
         }
         // Phase loss: one phase carries under 3/64 (4.7 %) of the current's power (a third
@@ -418,7 +422,8 @@ mod tests {
                 iq_ref: pu_from_f64(iq_ref),
                 running: true,
             };
-            if let Some(f) = m.check(&c.monitor, &s, &e) {
+            // The first sample is odd, as the drive's first (its slot is counted before use).
+            if let Some(f) = m.check(&c.monitor, &s, &e, k % 2 == 0) {
                 return Some((k, f));
             }
         }
