@@ -6,9 +6,10 @@
 //!
 //! The filters are first-order with the pole a power of two (a shift, no product): their time
 //! constants below are rounded to a power of two of their steps (at 14 kHz, 1 ms is 16
-//! samples). The sensor checks run every sample; the phase-loss check runs on even samples and
-//! the stall and loss-of-lock checks on odd ones, so that no sample pays for all of them (their
-//! counts and filters are in steps of two samples: at 14 kHz 2 ms is 16 steps, 10 ms 64).
+//! samples). The sum check runs every sample; the phase-loss check runs on even samples and
+//! the stuck-channel, stall and loss-of-lock checks on odd ones, so that no sample pays for
+//! all of them (their counts and filters are in steps of two samples: at 14 kHz 2 ms is 16
+//! steps, 10 ms 64).
 //!
 //! | fault | evidence | time to trip |
 //! |---|---|---|
@@ -25,8 +26,8 @@ use crate::frames::Abc;
 use crate::num::{Pu, pu_from_f64};
 use crate::observer::{AnyEstimator, Estimator};
 
-/// Thresholds and filter poles, per unit and in samples (`stuck_samples`, `settle_samples`,
-/// `ms1`) or in steps of two samples (the rest: the alternating checks).
+/// Thresholds and filter poles, per unit and in samples (`settle_samples`, `ms1`) or in steps
+/// of two samples (the rest: the alternating checks).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MonitorConfig {
     pub sum_limit: Pu,
@@ -109,7 +110,7 @@ impl MonitorConfig {
             ms1: pole(1e-3)?,
             ms2: pole2(2e-3)?,
             ms10: pole2(10e-3)?,
-            stuck_samples: libm::ceil(0.05 / ts) as u32,
+            stuck_samples: libm::ceil(0.05 / ts2) as u32,
             turning: pu_from_f64(0.02),
             min_power: {
                 let m = 0.01 * 4096.0;
@@ -206,30 +207,6 @@ impl Monitor {
             return Some(Fault::CurrentSensor(None));
         }
         let speed = s.omega.saturating_abs();
-        let turning = speed > c.turning;
-        // Stuck channel: the same bits for 50 ms while the rotor turns and others change.
-        let bits = [ph[0].to_bits(), ph[1].to_bits(), ph[2].to_bits()];
-        let changed = [
-            bits[0] != self.last_bits[0],
-            bits[1] != self.last_bits[1],
-            bits[2] != self.last_bits[2],
-        ];
-        self.last_bits = bits;
-        let any = changed[0] | changed[1] | changed[2];
-        for (k, (count, mine)) in self.same.iter_mut().zip(changed).enumerate() {
-            // Another phase moved when any did and this one did not. A sample where nothing
-            // else moved says nothing: hold the count.
-            *count = if mine || !turning {
-                0
-            } else if any {
-                count.saturating_add(1)
-            } else {
-                *count
-            };
-            if *count > c.stuck_samples {
-                return Some(Fault::CurrentSensor(Some(k as u8)));
-            }
-        }
         self.running_for = if s.running {
             self.running_for.saturating_add(1)
         } else {
@@ -239,6 +216,9 @@ impl Monitor {
         // even samples, stall and loss of lock on odd ones (their counts and filters are in
         // steps of two samples).
         if odd {
+            if let Some(f) = self.check_stuck(c, &ph, speed) {
+                return Some(f);
+            }
             return self.check_motion(c, s, speed, e);
         }
         // Phase loss: one phase carries under 3/64 (4.7 %) of the current's power (a third
@@ -271,6 +251,36 @@ impl Monitor {
             };
             if *weak > c.phase_loss_turn {
                 return Some(Fault::PhaseLoss(k as u8));
+            }
+        }
+        None
+    }
+
+    /// Stuck channel (odd samples): the same bits for 50 ms while the rotor turns and other
+    /// phases change (compared with the reading two samples before).
+    #[inline(always)]
+    fn check_stuck(&mut self, c: &MonitorConfig, ph: &[Pu; 3], speed: Pu) -> Option<Fault> {
+        let turning = speed > c.turning;
+        let bits = [ph[0].to_bits(), ph[1].to_bits(), ph[2].to_bits()];
+        let changed = [
+            bits[0] != self.last_bits[0],
+            bits[1] != self.last_bits[1],
+            bits[2] != self.last_bits[2],
+        ];
+        self.last_bits = bits;
+        let any = changed[0] | changed[1] | changed[2];
+        for (k, (count, mine)) in self.same.iter_mut().zip(changed).enumerate() {
+            // Another phase moved when any did and this one did not. A sample where nothing
+            // else moved says nothing: hold the count.
+            *count = if mine || !turning {
+                0
+            } else if any {
+                count.saturating_add(1)
+            } else {
+                *count
+            };
+            if *count > c.stuck_samples {
+                return Some(Fault::CurrentSensor(Some(k as u8)));
             }
         }
         None
