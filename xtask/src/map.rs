@@ -131,8 +131,8 @@ pub enum Outcome {
     /// Refused the reference above the maximum speed (`above_max_speed`) and used this one,
     /// r/min.
     AboveMax(f64),
-    /// Tripped: the fault's name and when, s.
-    Fault(&'static str, f64),
+    /// Tripped: the fault's name, when (s) and in which stage of the run.
+    Fault(&'static str, f64, &'static str),
     /// No fault and no refusal, but off the reference or the angle beyond the bounds of
     /// "held": the mean speed, r/min.
     Missed(f64),
@@ -155,10 +155,10 @@ impl Outcome {
         match self {
             Outcome::Held => "held".into(),
             Outcome::BelowMinimum(n) => {
-                format!("refused: below_estimator_minimum, held {n:.0} r/min")
+                format!("refused: below_estimator_minimum, held at {n:.0} r/min")
             }
-            Outcome::AboveMax(n) => format!("refused: above_max_speed, ran at {n:.0} r/min"),
-            Outcome::Fault(name, t) => format!("fault: {name} at {t:.2} s"),
+            Outcome::AboveMax(n) => format!("refused: above_max_speed, clamped to {n:.0} r/min"),
+            Outcome::Fault(name, t, stage) => format!("fault: {name} at {t:.2} s, {stage}"),
             Outcome::Missed(n) => format!("missed: ran at {n:.0} r/min"),
         }
     }
@@ -211,10 +211,42 @@ fn examples_dir() -> std::path::PathBuf {
     super::root().join("examples")
 }
 
-/// The scenario of `case` at `speed_rpm` and `load_nm`, and the start of its window, s; the
+/// When the stages of a point's run begin, s.
+#[derive(Clone, Copy, Debug)]
+pub struct Timing {
+    /// The reference starts to rise (the start-up before).
+    pub start_s: f64,
+    /// The reference reached.
+    pub ramp_end_s: f64,
+    /// The load starts to rise.
+    pub load_s: f64,
+    /// The steady window.
+    pub window_s: f64,
+    /// The load, N·m.
+    pub load_nm: f64,
+}
+
+impl Timing {
+    /// The stage of the run at `t_s`, in words.
+    pub fn stage(&self, t_s: f64) -> &'static str {
+        if t_s < self.start_s {
+            "at start-up"
+        } else if t_s < self.ramp_end_s {
+            "on the speed ramp"
+        } else if t_s < self.load_s || self.load_nm == 0.0 {
+            "at the speed reached, no load"
+        } else if t_s < self.load_s + LOAD_RAMP_S {
+            "while the load rises"
+        } else {
+            "under load"
+        }
+    }
+}
+
+/// The scenario of `case` at `speed_rpm` and `load_nm`, and its timing; the
 /// rotor starts at `θ_e = 0`, where the alignment pulls it (the start-up from other angles is
 /// [`startup_check`]'s).
-pub fn scenario(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<(Scenario, f64)> {
+pub fn scenario(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<(Scenario, Timing)> {
     scenario_at(case, speed_rpm, load_nm, 0.0)
 }
 
@@ -224,7 +256,7 @@ fn scenario_at(
     speed_rpm: f64,
     load_nm: f64,
     theta_deg: f64,
-) -> Result<(Scenario, f64)> {
+) -> Result<(Scenario, Timing)> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     static N: AtomicUsize = AtomicUsize::new(0);
     let ramp_s = (speed_rpm.abs() / case.accel_rpm_s).max(0.01);
@@ -262,7 +294,16 @@ fn scenario_at(
     std::fs::write(&path, text)?;
     let sc = scenario_file::read(&path);
     std::fs::remove_file(&path).ok();
-    Ok((sc?, duration - WINDOW_S))
+    Ok((
+        sc?,
+        Timing {
+            start_s: case.start_s,
+            ramp_end_s: t_ref,
+            load_s: t_load,
+            window_s: duration - WINDOW_S,
+            load_nm,
+        },
+    ))
 }
 
 /// The drive's maximum speed (`FluxConfig::max_speed`) and the least speed of its closed loop
@@ -282,7 +323,8 @@ pub fn speed_limits_rpm(case: &Case) -> Result<(f64, f64)> {
 
 /// Runs `case` at one point.
 pub fn run_point(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<Point> {
-    let (sc, t0) = scenario(case, speed_rpm, load_nm)?;
+    let (sc, timing) = scenario(case, speed_rpm, load_nm)?;
+    let t0 = timing.window_s;
     let run = run_scenario(&sc)?;
     let rs_ohm = sc.motor.model.params.rs_ohm;
     let v_b = sc.inverter.vdc_v / 3f64.sqrt();
@@ -325,7 +367,7 @@ pub fn run_point(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<Point> {
     let i_sq = |r: &Row| r.i_dq_a[0].powi(2) + r.i_dq_a[1].powi(2);
     let tolerance = HELD_SPEED * reference_rpm.abs().max(0.1 * case.rated_rpm);
     let outcome = match (fault, refused) {
-        (Some((name, t)), _) => Outcome::Fault(name, t),
+        (Some((name, t)), _) => Outcome::Fault(name, t, timing.stage(t)),
         (None, Some(r)) => r,
         (None, None) if angle_rms_rad < HELD_ANGLE_RAD && speed_err_rpm < tolerance => {
             Outcome::Held
@@ -450,19 +492,20 @@ fn cell(x: f64, digits: usize) -> String {
 pub fn section(grids: &[(Grid, Vec<(f64, &'static str)>)], startup_angles: usize) -> String {
     let mut s = format!(
         "{HEADER}\n\n\
-         Regenerate with `cargo xtask map` (release build, about a minute on 2 cores), which also \
-         draws `docs/figures/map-motor-a.svg`, `map-motor-b.svg`, `map-motor-c.svg`; `cargo xtask \
-         perf` keeps this section as it is.\n\n\
-         Steady operation over the torque–speed plane with MTPA and field weakening on. Each \
-         point is one `pmsm simulate` scenario: the fixed-point drive against the plant with the \
-         switching-level inverter (dead time compensated), 12-bit current ADC, the default d-axis \
-         saturation; the rotor starts at θ_e = 0; the speed reference rises to the point's speed \
-         (A 1300, B 2000, C 8000 r/min/s), {BEFORE_LOAD_S} s later the load rises to the point's \
-         torque in {LOAD_RAMP_S} s, and every figure is taken over the last {WINDOW_S} s, \
-         {SETTLE_S} s after that. Speeds in % of rated (100 % = A 1200, B 3000, C 3000 r/min), \
-         and one more column at {ABOVE_MAX} times the drive's maximum speed \
-         (`FluxConfig::max_speed`, docs/field-weakening.md §3); loads in % of rated torque \
-         (A 9.55, B 4.0, C 2.81 N·m), braking the rotor.\n\n\
+         Regenerate with `cargo xtask map` (release build, one to two minutes on 2 cores), which \
+         also draws `docs/figures/map-motor-a.svg`, `map-motor-b.svg`, `map-motor-c.svg`; \
+         `cargo xtask perf` keeps this section as it is.\n\n\
+         Steady operation over the torque–speed plane with MTPA and field weakening on (MTPA \
+         changes nothing on the surface motor A) and the drive's default current limit, the \
+         rated peak current. Each point is one `pmsm simulate` scenario: the fixed-point drive \
+         against the plant with the switching-level inverter (dead time compensated), 12-bit \
+         current ADC, the default d-axis saturation; the rotor starts at rest at θ_e = 0 (the \
+         start-up from other angles is checked apart, below); after the start-up the speed \
+         reference rises to the point's speed at {}, {BEFORE_LOAD_S} s later the load rises to \
+         the point's torque in {LOAD_RAMP_S} s, and every figure is taken over the last \
+         {WINDOW_S} s, {SETTLE_S} s after that. Speeds in % of rated ({}), and one more column \
+         at {ABOVE_MAX} times the drive's maximum speed (`FluxConfig::max_speed`, \
+         docs/field-weakening.md §3); loads in % of rated torque ({}), braking the rotor.\n\n\
          Columns: n, the mean true speed (r/min); position error rms (rad, in the closed loop); \
          speed error, mean |n − n*| in % of the reference n* (in r/min at n* = 0; for a refused \
          reference, against the speed the drive held instead); |i|, the mean magnitude of the true dq currents \
@@ -475,16 +518,18 @@ pub fn section(grids: &[(Grid, Vec<(f64, &'static str)>)], startup_angles: usize
          back-EMF estimator; `above_max_speed`, clamped to the maximum speed); *fault* with its \
          name (figures left out: after a trip they describe a coasting or shorted motor); \
          *missed* when neither.\n\n",
+        per_motor(&|c| format!("{} r/min/s", c.accel_rpm_s)),
+        per_motor(&|c| format!("{} r/min", c.rated_rpm)),
+        per_motor(&|c| format!("{} N·m", c.rated_nm)),
         100.0 * HELD_SPEED
     );
     for (g, failed) in grids {
         let c = &g.case;
         let points: Vec<&Point> = g.points.iter().flatten().collect();
-        let held = points.iter().filter(|p| p.outcome == Outcome::Held).count();
         let _ = write!(
             s,
-            "### {}\n\n{} V, {} kHz, {} µs dead time; maximum speed {:.0} r/min{}. {held} of {} \
-             points held. Start-up from {startup_angles} initial angles (no load, to half rated \
+            "### {}\n\n{} V, {} kHz, {} µs dead time, start-up `{}`; maximum speed {:.0} r/min{}. {} of {} \
+             points held; {}. Start-up from {startup_angles} initial angles (no load, to half rated \
              speed): {}.\n\n\
              | speed n* (r/min) | load (N·m) | outcome | n (r/min) | position error (rad) | \
              speed error | \\|i\\| (A) | i_d (A) | m | P_cu (W) |\n\
@@ -493,13 +538,16 @@ pub fn section(grids: &[(Grid, Vec<(f64, &'static str)>)], startup_angles: usize
             c.vdc_v,
             c.pwm_hz / 1e3,
             c.dead_time_s * 1e6,
+            c.startup,
             g.max_rpm,
             if g.min_rpm > 0.0 {
                 format!(", least closed-loop speed {:.0} r/min", g.min_rpm)
             } else {
                 String::new()
             },
+            points.iter().filter(|p| p.outcome == Outcome::Held).count(),
             points.len(),
+            summary(g),
             if failed.is_empty() {
                 "all reached the closed loop".to_owned()
             } else {
@@ -543,6 +591,44 @@ pub fn section(grids: &[(Grid, Vec<(f64, &'static str)>)], startup_angles: usize
         s.push('\n');
     }
     s
+}
+
+/// `"A x, B y, C z"` over [`CASES`].
+fn per_motor(f: &dyn Fn(&Case) -> String) -> String {
+    CASES
+        .iter()
+        .map(|c| format!("{} {}", c.key.to_uppercase(), f(c)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The points not held, by outcome: "refused above_max_speed: 3401 r/min × 0 %, …; …".
+fn summary(g: &Grid) -> String {
+    let mut groups: Vec<(String, Vec<String>)> = Vec::new();
+    for (k, n) in g.speeds_rpm.iter().enumerate() {
+        for (l, row) in g.points.iter().enumerate() {
+            let kind = match &row[k].outcome {
+                Outcome::Held => continue,
+                Outcome::BelowMinimum(_) => "refused below_estimator_minimum".to_owned(),
+                Outcome::AboveMax(_) => "refused above_max_speed".to_owned(),
+                Outcome::Fault(name, _, stage) => format!("{name} {stage}"),
+                Outcome::Missed(_) => "missed".to_owned(),
+            };
+            let at = format!("{n:.0} r/min × {:.0} %", LOADS_PCT[l]);
+            match groups.iter_mut().find(|(g, _)| *g == kind) {
+                Some((_, v)) => v.push(at),
+                None => groups.push((kind, vec![at])),
+            }
+        }
+    }
+    if groups.is_empty() {
+        return "none refused, missed or faulted".into();
+    }
+    groups
+        .iter()
+        .map(|(kind, at)| format!("{kind}: {}", at.join(", ")))
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// Where the operating-map section of `doc` starts and ends (at the next `## ` header or the
@@ -595,7 +681,7 @@ fn compact(g: &Grid) -> String {
         let _ = write!(s, "{:>4} %", LOADS_PCT[l]);
         for p in row {
             let c = match &p.outcome {
-                Outcome::Fault(name, _) => format!("F {name}"),
+                Outcome::Fault(name, ..) => format!("F {name}"),
                 o => format!(
                     "{}{:.4}/{}",
                     o.mark(),

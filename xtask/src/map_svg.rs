@@ -59,8 +59,8 @@ const GRID_X: f64 = 78.0;
 const GRID_Y: f64 = 30.0;
 const GRID_W: f64 = 440.0;
 const GRID_H: f64 = 160.0;
-const HEADER_H: f64 = 62.0;
-const FOOTER_H: f64 = 58.0;
+const HEADER_H: f64 = 80.0;
+const FOOTER_H: f64 = 70.0;
 
 /// The smallest value a logarithmic scale shows (below it, the bottom colour).
 const LOG_FLOOR: f64 = 1e-4;
@@ -85,11 +85,14 @@ fn colour(t: f64) -> (u8, u8, u8) {
 /// A cell's number in at most six characters.
 fn short(x: f64) -> String {
     let a = x.abs();
-    if a >= 100.0 {
+    // Below what the figures resolve (rounding noise of a current at rest): zero.
+    if a < 5e-5 {
+        "0".into()
+    } else if a >= 100.0 {
         format!("{x:.0}")
     } else if a >= 10.0 {
         format!("{x:.1}")
-    } else if a >= 0.1 || a == 0.0 {
+    } else if a >= 0.1 {
         format!("{x:.2}")
     } else if a >= 0.01 {
         format!("{x:.3}")
@@ -158,9 +161,11 @@ pub fn draw(g: &Grid) -> String {
         s,
         "<text x=\"20\" y=\"24\" font-size=\"17\">Operating map: {}</text>\n\
          <text x=\"20\" y=\"46\" font-size=\"12\">{} V, {} kHz, switching inverter, MTPA and field \
-         weakening on, default current limit; each cell: the steady window of one run (cargo \
-         xtask map); rated {:.0} r/min, {} N·m (100 % load, braking); maximum speed n_max = {:.0} \
-         r/min</text>",
+         weakening on, the drive's default current limit (rated peak); rated {:.0} r/min and {} \
+         N·m (100 % load, braking the rotor).</text>\n\
+         <text x=\"20\" y=\"64\" font-size=\"12\">Maximum speed n_max = {:.0} r/min. Each \
+         cell: the steady window (last 0.3 s) of one run from standstill, built and measured by \
+         cargo xtask map.</text>",
         escape(c.title),
         c.vdc_v,
         c.pwm_hz / 1e3,
@@ -176,13 +181,13 @@ pub fn draw(g: &Grid) -> String {
     let fy = HEADER_H + 3.0 * PANEL_H + 10.0;
     let lines = [
         "Marks: <tspan font-weight=\"bold\">min</tspan> refused below the estimator's least speed \
-         (below_estimator_minimum): the drive holds that speed, the errors are against it; \
-         <tspan font-weight=\"bold\">max</tspan> refused above the maximum speed \
-         (above_max_speed): clamped to n_max, the errors against it;",
-        "<tspan font-weight=\"bold\">×</tspan> missed the reference without a fault; \
-         <tspan font-weight=\"bold\">F</tspan> fault (lock: loss_of_lock, stall, I&gt;: \
-         overcurrent, n&gt;: overspeed), dark cell, no figures; grey: no value (zero reference). \
-         Every figure and outcome: docs/PERFORMANCE.md, Operating map.",
+         (below_estimator_minimum): the drive holds that speed, and the errors are against it;",
+        "<tspan font-weight=\"bold\">max</tspan> refused above the maximum speed \
+         (above_max_speed): clamped to n_max, the errors against it; \
+         <tspan font-weight=\"bold\">×</tspan> missed the reference without a fault;",
+        "<tspan font-weight=\"bold\">F</tspan> fault (lock: loss_of_lock, stall, I&gt;: \
+         overcurrent, n&gt;: overspeed): dark, no figures; grey: no value (zero reference). \
+         Every figure: docs/PERFORMANCE.md, Operating map.",
     ];
     for (k, line) in lines.iter().enumerate() {
         let _ = writeln!(
@@ -243,7 +248,7 @@ fn panel(s: &mut String, g: &Grid, q: &Quantity, x: f64, y: f64) {
                 escape(&p.outcome.describe())
             );
             let text = match &p.outcome {
-                Outcome::Fault(name, _) => format!("F {}", fault_tag(name)),
+                Outcome::Fault(name, ..) => format!("F {}", fault_tag(name)),
                 _ if v.is_finite() => short(v),
                 _ => "–".into(),
             };
