@@ -362,3 +362,71 @@ fn colour_bar(s: &mut String, q: &Quantity, (lo, hi): (f64, f64), x: f64, y: f64
         );
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::{CASES, Grid};
+
+    fn point(outcome: Outcome, x: f64) -> Point {
+        Point {
+            load_nm: 1.0,
+            outcome,
+            angle_rms_rad: x,
+            speed_rpm: 100.0,
+            speed_err_rpm: x,
+            speed_err_pct: x,
+            i_mag_a: x,
+            i_d_a: -x,
+            modulation: x,
+            copper_w: x,
+        }
+    }
+
+    #[test]
+    fn cells_carry_their_outcome_and_the_scales_their_units() {
+        let nan = f64::NAN;
+        let row = |k: usize| {
+            vec![
+                point(Outcome::Held, 0.001 * (k + 1) as f64),
+                point(Outcome::AboveMax(900.0), 0.01),
+                point(Outcome::Fault("loss_of_lock", 1.0, "under load"), nan),
+            ]
+        };
+        let g = Grid {
+            case: CASES[1],
+            max_rpm: 800.0,
+            min_rpm: 0.0,
+            speeds_rpm: vec![0.0, 300.0, 880.0],
+            speed_labels: vec!["0 %".into(), "10 %".into(), "1.1·n_max".into()],
+            points: (0..LOADS_PCT.len()).map(row).collect(),
+        };
+        let svg = draw(&g);
+        // Six panels, each with the marks of its 15 cells.
+        assert_eq!(svg.matches("F lock</text>").count(), 6 * LOADS_PCT.len());
+        assert_eq!(svg.matches(">max</text>").count(), 6 * LOADS_PCT.len());
+        for unit in [
+            ">rad</text>",
+            ">%</text>",
+            ">A</text>",
+            ">pu</text>",
+            ">W</text>",
+        ] {
+            assert!(svg.contains(unit), "{unit}");
+        }
+        // The logarithmic scale spans 1e-3 … 1e-2: both ends labelled.
+        assert!(svg.contains(">1e-3</text>") && svg.contains(">0.010</text>"));
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    }
+
+    #[test]
+    fn viridis_ends_and_short_numbers() {
+        assert_eq!(colour(0.0), (68, 1, 84));
+        assert_eq!(colour(1.0), (253, 231, 37));
+        assert_eq!(colour(2.0), colour(1.0));
+        assert_eq!(short(0.00031), "3e-4");
+        assert_eq!(short(-2.126), "-2.13");
+        assert_eq!(short(137.9), "138");
+        assert_eq!(short(-4e-16), "0");
+    }
+}
