@@ -134,8 +134,8 @@ pub enum Outcome {
     /// Tripped: the fault's name, when (s) and in which stage of the run.
     Fault(&'static str, f64, &'static str),
     /// No fault and no refusal, but off the reference or the angle beyond the bounds of
-    /// "held": the mean speed, r/min.
-    Missed(f64),
+    /// "held".
+    Missed(Miss),
 }
 
 impl Outcome {
@@ -159,7 +159,43 @@ impl Outcome {
             }
             Outcome::AboveMax(n) => format!("refused: above_max_speed, clamped to {n:.0} r/min"),
             Outcome::Fault(name, t, stage) => format!("fault: {name} at {t:.2} s, {stage}"),
-            Outcome::Missed(n) => format!("missed: ran at {n:.0} r/min"),
+            Outcome::Missed(m) => m.describe(),
+        }
+    }
+}
+
+/// How a point missed its reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Miss {
+    /// The least and the largest speed over the window, r/min.
+    pub speed_rpm: (f64, f64),
+    /// The speed at the window's start and end, r/min.
+    pub drift_rpm: (f64, f64),
+    /// The mean current magnitude was at the drive's current limit (within 2 %).
+    pub current_limit: bool,
+    /// The mean voltage was at the modulator's circle (beyond 95 % of it).
+    pub voltage_limit: bool,
+}
+
+impl Miss {
+    /// In words, for the table.
+    pub fn describe(&self) -> String {
+        let (lo, hi) = self.speed_rpm;
+        let limits = match (self.current_limit, self.voltage_limit) {
+            (true, true) => "at the current and voltage limits",
+            (true, false) => "at the current limit",
+            (false, true) => "at the voltage limit",
+            (false, false) => "within both limits",
+        };
+        let (first, last) = self.drift_rpm;
+        let spread = hi - lo;
+        if spread > 0.02 * hi.abs().max(lo.abs()) && (last - first).abs() > 0.9 * spread {
+            let way = if last < first { "falling" } else { "rising" };
+            format!("missed: {way} {first:.0} → {last:.0} r/min, {limits}")
+        } else if spread > 0.02 * hi.abs().max(lo.abs()) {
+            format!("missed: swung {lo:.0}–{hi:.0} r/min, {limits}")
+        } else {
+            format!("missed: ran at {:.0} r/min, {limits}", 0.5 * (lo + hi))
         }
     }
 }
@@ -372,7 +408,25 @@ pub fn run_point(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<Point> {
         (None, None) if angle_rms_rad < HELD_ANGLE_RAD && speed_err_rpm < tolerance => {
             Outcome::Held
         }
-        (None, None) => Outcome::Missed(mean_speed_rpm),
+        (None, None) => {
+            let (lo, hi) = w
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
+                    (a.min(r.speed_rpm), b.max(r.speed_rpm))
+                });
+            let limit_a = build_drive(&sc)?
+                .drive
+                .config()
+                .design
+                .speed
+                .current_limit_a;
+            Outcome::Missed(Miss {
+                speed_rpm: (lo, hi),
+                drift_rpm: (w[0].speed_rpm, last.speed_rpm),
+                current_limit: mean(&|r| i_sq(r).sqrt()) > 0.98 * limit_a,
+                voltage_limit: mean(&|r| r.v_ab_v[0].hypot(r.v_ab_v[1])) > 0.95 * v_b,
+            })
+        }
     };
     let mut p = Point {
         load_nm,
@@ -612,7 +666,12 @@ fn summary(g: &Grid) -> String {
                 Outcome::BelowMinimum(_) => "refused below_estimator_minimum".to_owned(),
                 Outcome::AboveMax(_) => "refused above_max_speed".to_owned(),
                 Outcome::Fault(name, _, stage) => format!("{name} {stage}"),
-                Outcome::Missed(_) => "missed".to_owned(),
+                Outcome::Missed(m) => match (m.current_limit, m.voltage_limit) {
+                    (false, false) => "missed within both limits".to_owned(),
+                    (true, false) => "missed at the current limit".to_owned(),
+                    (false, true) => "missed at the voltage limit".to_owned(),
+                    (true, true) => "missed at the current and voltage limits".to_owned(),
+                },
             };
             let at = format!("{n:.0} r/min × {:.0} %", LOADS_PCT[l]);
             match groups.iter_mut().find(|(g, _)| *g == kind) {
