@@ -443,6 +443,7 @@ pub fn run_point(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<Point> {
     if matches!(p.outcome, Outcome::Fault(..)) {
         // After a trip the window shows a motor coasting or shorted, not the drive.
         for x in [
+            &mut p.speed_rpm,
             &mut p.angle_rms_rad,
             &mut p.speed_err_rpm,
             &mut p.speed_err_pct,
@@ -535,7 +536,9 @@ const HEADER: &str = "## Operating map";
 /// Number format for a table cell: `-` for no value.
 fn cell(x: f64, digits: usize) -> String {
     if x.is_finite() {
-        format!("{x:.digits$}")
+        // No "-0.00": a value that rounds to zero prints as zero.
+        let zero = (x * 10f64.powi(digits as i32)).round() == 0.0;
+        format!("{:.digits$}", if zero { 0.0 } else { x })
     } else {
         "-".into()
     }
