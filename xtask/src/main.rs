@@ -15,7 +15,6 @@ mod cffi;
 mod drive_motor_b;
 mod examples;
 mod map;
-mod map_svg;
 mod observers_motor_a;
 mod pil;
 mod plant_speed;

@@ -2,7 +2,7 @@
 //! marked where the drive refused the reference or tripped. Plain SVG text: the time-series
 //! plots of `pmsm_cli::plot` have no categorical grid.
 
-use super::map::{Grid, LOADS_PCT, Outcome, Point};
+use super::{Grid, LOADS_PCT, Outcome, Point};
 use std::fmt::Write as _;
 
 /// One panel: title, unit (for the colour bar), the value of a point, logarithmic scale.
@@ -366,7 +366,7 @@ fn colour_bar(s: &mut String, q: &Quantity, (lo, hi): (f64, f64), x: f64, y: f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::map::{CASES, Grid};
+    use crate::map::CASES;
 
     fn point(outcome: Outcome, x: f64) -> Point {
         Point {
