@@ -6,12 +6,15 @@
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 //! - `cargo xtask sweep [N]`: N random healthy scenarios (default 200), none may fault.
 //! - `cargo xtask robustness`: prints the parameter-error table of `docs/PERFORMANCE.md`.
+//! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
+//!   `docs/PERFORMANCE.md`).
 
 mod accuracy;
 mod board;
 mod cffi;
 mod drive_motor_b;
 mod examples;
+mod map;
 mod observers_motor_a;
 mod pil;
 mod plant_speed;
@@ -43,11 +46,12 @@ fn main() -> Result<()> {
                 .unwrap_or(200);
             sweep::run(n)
         }
+        "map" => map::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "robustness" => {
             print!("{}", drive_motor_b::robustness_section()?);
             Ok(())
         }
-        _ => bail!("usage: cargo xtask perf | figures | examples | robustness | sweep [N]"),
+        _ => bail!("usage: cargo xtask perf | figures | examples | robustness | sweep [N] | map"),
     }
 }
 
@@ -66,6 +70,8 @@ fn perf() -> Result<()> {
     doc.push_str(&drive_motor_b::section()?);
     eprintln!("robustness to parameter errors ...");
     doc.push_str(&drive_motor_b::robustness_section()?);
+    // The operating map is `cargo xtask map`'s (a minute more): kept as it is.
+    doc.push_str(&map::kept_section());
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");
