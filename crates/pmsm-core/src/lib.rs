@@ -142,5 +142,5 @@ pub use params::{
     InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative, positive,
 };
 pub use recorder::{FaultRecorder, FaultSample};
-pub use svpwm::{Duties, SvpwmConfig, SvpwmOutput};
+pub use svpwm::{Duties, OVERMOD_SIX_STEP_REQUEST, SvpwmConfig, SvpwmOutput, overmodulate_f64};
 pub use units::{PerUnit, to_f64};
