@@ -85,6 +85,9 @@ pub struct SvpwmConfig {
     vmax_per_vdc_q31: i32,
     /// Overmodulation to six-step instead of the circle.
     overmodulation: bool,
+    /// Overmodulating, `½ − δ` in Q2.30: a leg whose centred duty passes it is held at its
+    /// rail (`δ` the shortest pulse kept, a fraction of the period).
+    rail_q30: i32,
     /// Below this bus, duties ½ and `bus_low`.
     vdc_min: Pu,
     /// The margin `m`.
@@ -98,6 +101,7 @@ impl Default for SvpwmConfig {
         Self {
             vmax_per_vdc_q31: INV_SQRT3_Q31,
             overmodulation: false,
+            rail_q30: 1 << (UNIT_FRAC - 1),
             vdc_min: pu_from_f64(DEFAULT_VDC_MIN_PU),
             modulation: 1.0,
         }
@@ -113,6 +117,7 @@ impl SvpwmConfig {
         Ok(Self {
             vmax_per_vdc_q31: libm::round(m / libm::sqrt(3.0) * 2_147_483_648.0) as i32,
             overmodulation: false,
+            rail_q30: 1 << (UNIT_FRAC - 1),
             vdc_min: pu_from_f64(vmin),
             modulation: m,
         })
@@ -127,6 +132,20 @@ impl SvpwmConfig {
             overmodulation: true,
             ..Self::default()
         }
+    }
+
+    /// This modulator dropping, when it overmodulates, every pulse shorter than `fraction`
+    /// of the period (a leg within `fraction` of a rail is held at the rail): a pulse shorter
+    /// than the dead time is swallowed by it, which neither the dead-time compensation nor
+    /// the estimator would know; held, the leg does not switch and loses no dead time.
+    ///
+    /// Errors: `fraction` outside [0, 0.1] (`svpwm.min_pulse`).
+    pub fn with_min_pulse(self, fraction: f64) -> Result<Self, ConfigError> {
+        let f = in_range("svpwm.min_pulse", fraction, 0.0, 0.1)?;
+        Ok(Self {
+            rail_q30: (1 << (UNIT_FRAC - 1)) - libm::round(f * (1u64 << UNIT_FRAC) as f64) as i32,
+            ..self
+        })
     }
 
     /// Whether the modulator overmodulates ([`SvpwmConfig::overmodulating`]).
@@ -151,10 +170,36 @@ impl SvpwmConfig {
     /// Integer only; never panics. Takes the bus's reciprocal at every call (the drive keeps
     /// it from one sample to the next while the bus reading does not change).
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
-        self.modulate_cached(v, vdc, &mut BusReciprocal::default())
+        let mut cache = BusReciprocal::default();
+        if self.overmodulation {
+            self.overmodulate_cached(v, vdc, &mut cache)
+        } else {
+            self.modulate_cached(v, vdc, &mut cache)
+        }
     }
 
-    /// [`SvpwmConfig::modulate`], bit for bit, with `1/v_dc` and the circle's radius taken
+    /// The overmodulating modulator ([`SvpwmConfig::overmodulating`]) with the bus terms of
+    /// `cache` (as [`SvpwmConfig::modulate_cached`]): out of line, so the linear modulator's
+    /// path keeps its registers and the drive pays one test for the choice.
+    #[inline(never)]
+    pub(crate) fn overmodulate_cached(
+        &self,
+        v: AlphaBeta,
+        vdc: Pu,
+        cache: &mut BusReciprocal,
+    ) -> SvpwmOutput {
+        if vdc <= self.vdc_min {
+            return SvpwmOutput {
+                duties: Duties::HALF,
+                v: AlphaBeta::default(),
+                saturated: true,
+                bus_low: true,
+            };
+        }
+        overmodulate(v, vdc, cache.get(vdc, self), self.rail_q30)
+    }
+
+    /// [`SvpwmConfig::modulate`] of the linear modulator, bit for bit, with `1/v_dc` and the circle's radius taken
     /// from `cache` when the bus reading is the one they were computed for (a 32-bit division
     /// and four products saved) and recomputed and stored otherwise.
     pub(crate) fn modulate_cached(
@@ -172,9 +217,6 @@ impl SvpwmConfig {
             };
         }
         let bus = cache.get(vdc, self);
-        if self.overmodulation {
-            return overmodulate(v, vdc, bus);
-        }
         let (v, saturated) = limit(v, bus.v_max);
         // To fractions of the bus first (two products), then the legs (one more):
         // d_x = ½ + u_x − (max + min)/2 with u = v/v_dc, all in Q2.30. Inside the circle
@@ -206,10 +248,9 @@ impl SvpwmConfig {
     }
 }
 
-/// The overmodulating modulator (module documentation): out of line, so the linear
-/// modulator's path keeps its registers.
-#[inline(never)]
-fn overmodulate(v: AlphaBeta, vdc: Pu, bus: BusReciprocal) -> SvpwmOutput {
+/// The overmodulating modulator (module documentation) for a bus above `vdc_min`.
+#[inline(always)]
+fn overmodulate(v: AlphaBeta, vdc: Pu, bus: BusReciprocal, rail: i32) -> SvpwmOutput {
     let (ua, ub) = (
         bus.fraction(v.alpha.to_bits()),
         bus.fraction(v.beta.to_bits()),
@@ -224,47 +265,51 @@ fn overmodulate(v: AlphaBeta, vdc: Pu, bus: BusReciprocal) -> SvpwmOutput {
     let (hi64, lo64) = (i64::from(hi), i64::from(lo));
     let half = 1i32 << (UNIT_FRAC - 1);
     let span = hi64 - lo64;
-    if span <= 1 << UNIT_FRAC {
-        // Inside the hexagon: the min–max injection alone, exact (the duties stay in [0, 1]).
-        let duty = |x: i32| -> Unit {
-            let num = i64::from(x) * 2 - hi64 - lo64;
-            Unit::from_bits(half + ((num >> 1) + (num & 1)) as i32)
+    // Each leg's offset from the centre of the legs, rounded: (2x − max − min)/2.
+    let centred = |x: i32| -> i32 {
+        let num = i64::from(x) * 2 - hi64 - lo64;
+        ((num >> 1) + (num & 1)) as i32
+    };
+    let (ea, eb, ec) = if span <= 1 << UNIT_FRAC {
+        // Inside the hexagon: the min–max injection alone (|offset| ≤ ½).
+        (centred(a), centred(b), centred(c))
+    } else {
+        // The middle leg's offset, |w| ≤ span/2 ≤ 2³¹ − 1 after the saturation below.
+        let mid = i64::from(a) + i64::from(b) + i64::from(c) - hi64 - lo64;
+        let w =
+            ((2 * mid - hi64 - lo64) / 2).clamp(-i64::from(i32::MAX), i64::from(i32::MAX)) as i32;
+        // On the hexagon, angle kept: w/span in [−½, ½], Q2.30.
+        let p = Reciprocal::of(span.min(i64::from(i32::MAX)) as i32).fraction(w);
+        // λ from |u|² (Q.60 to Q.30; the sum of two squares of i32 fits u64).
+        let u2 = ((umul(ua.unsigned_abs(), ua.unsigned_abs())
+            + umul(ub.unsigned_abs(), ub.unsigned_abs()))
+            >> 30) as i64;
+        let lambda = (((u2 - VERTEX_SQ_Q30) * LAMBDA_SLOPE_Q24) >> 24).clamp(0, 1 << UNIT_FRAC);
+        let vertex = if w >= 0 { half } else { -half };
+        let q = p + ((i64::from(vertex - p) * lambda) >> UNIT_FRAC) as i32;
+        // The highest leg at +½, the lowest at −½, the middle one at q.
+        let leg = |x: i32| -> i32 {
+            if x == hi {
+                half
+            } else if x == lo {
+                -half
+            } else {
+                q
+            }
         };
-        return SvpwmOutput {
-            duties: Duties {
-                a: duty(a),
-                b: duty(b),
-                c: duty(c),
-            },
-            v,
-            saturated: false,
-            bus_low: false,
-        };
-    }
-    // The middle leg's offset from the centre of the legs, |w| ≤ span/2 (fits in i32 even
-    // for the largest span, saturated to 2³¹ − 1 below).
-    let mid = i64::from(a) + i64::from(b) + i64::from(c) - hi64 - lo64;
-    let w = ((2 * mid - hi64 - lo64) / 2) as i32;
-    // On the hexagon, angle kept: w/span in [−½, ½], Q2.30.
-    let p = Reciprocal::of(span.min(i64::from(i32::MAX)) as i32).fraction(w);
-    // λ from |u|² (Q.60 to Q.30; the sum of two squares of i32 fits u64).
-    let u2 = ((umul(ua.unsigned_abs(), ua.unsigned_abs())
-        + umul(ub.unsigned_abs(), ub.unsigned_abs()))
-        >> 30) as i64;
-    let lambda = (((u2 - VERTEX_SQ_Q30) * LAMBDA_SLOPE_Q24) >> 24).clamp(0, 1 << UNIT_FRAC);
-    let vertex = if w >= 0 { half } else { -half };
-    let q = p + ((i64::from(vertex - p) * lambda) >> UNIT_FRAC) as i32;
-    // Centred legs: the highest at +½, the lowest at −½, the middle one at q.
-    let leg = |x: i32| -> i32 {
-        if x == hi {
+        (leg(a), leg(b), leg(c))
+    };
+    // Pulses shorter than the minimum dropped: the leg held at its rail.
+    let snap = |e: i32| -> i32 {
+        if e > rail {
             half
-        } else if x == lo {
+        } else if e < -rail {
             -half
         } else {
-            q
+            e
         }
     };
-    let (ea, eb, ec) = (leg(a), leg(b), leg(c));
+    let (ea, eb, ec) = (snap(ea), snap(eb), snap(ec));
     // The vector the duties make: Clarke of the centred legs (the zero sequence drops out),
     // from fractions of the bus (Q2.30) to per unit.
     let f = clarke(Abc {
@@ -289,10 +334,11 @@ fn overmodulate(v: AlphaBeta, vdc: Pu, bus: BusReciprocal) -> SvpwmOutput {
     }
 }
 
-/// The overmodulating modulator in f64, the reference of [`SvpwmConfig::overmodulating`]:
-/// for the request `u = (u_α, u_β)` in fractions of the bus, the three duties and the
-/// average vector they make, in fractions of the bus.
-pub fn overmodulate_f64(u_alpha: f64, u_beta: f64) -> ([f64; 3], [f64; 2]) {
+/// The overmodulating modulator in f64, the reference of [`SvpwmConfig::overmodulating`]
+/// with [`SvpwmConfig::with_min_pulse`]`(min_pulse)`: for the request `u = (u_α, u_β)` in
+/// fractions of the bus, the three duties and the average vector they make, in fractions of
+/// the bus.
+pub fn overmodulate_f64(u_alpha: f64, u_beta: f64, min_pulse: f64) -> ([f64; 3], [f64; 2]) {
     let s3 = libm::sqrt(3.0);
     let ph = [
         u_alpha,
@@ -336,7 +382,17 @@ pub fn overmodulate_f64(u_alpha: f64, u_beta: f64) -> ([f64; 3], [f64; 2]) {
             }
         });
     }
-    let [ea, eb, ec] = e;
+    // Pulses shorter than the minimum dropped.
+    let rail = 0.5 - min_pulse;
+    let [ea, eb, ec] = e.map(|x| {
+        if x > rail {
+            0.5
+        } else if x < -rail {
+            -0.5
+        } else {
+            x
+        }
+    });
     (
         [0.5 + ea, 0.5 + eb, 0.5 + ec],
         [(2.0 * ea - eb - ec) / 3.0, (eb - ec) / s3],
@@ -527,9 +583,10 @@ mod tests {
     /// 5.7e−8).
     #[test]
     fn overmodulation_matches_reference() {
-        let c = SvpwmConfig::overmodulating();
         let (mut dmax, mut amax, mut thmax) = (0.0f64, 0.0f64, 0.0f64);
-        for vdc in [1.732_050_8, 1.2, 2.1] {
+        let mut ambiguous = 0;
+        for (delta, vdc) in [(0.0, 1.732_050_8), (0.028, 1.2), (0.01, 2.1)] {
+            let c = SvpwmConfig::overmodulating().with_min_pulse(delta).unwrap();
             // The bus as the fixed point holds it.
             let vdc = pu_from_f64(vdc).to_num::<f64>();
             for i in 0..60 {
@@ -540,7 +597,14 @@ mod tests {
                     // The reference sees the request as the fixed point rounded it.
                     let ua = pu_from_f64(r * th.cos() * vdc).to_num::<f64>() / vdc;
                     let ub = pu_from_f64(r * th.sin() * vdc).to_num::<f64>() / vdc;
-                    let (dr, vr) = overmodulate_f64(ua, ub);
+                    let (dr, vr) = overmodulate_f64(ua, ub, delta);
+                    // A leg on the rail's threshold to the rounding: either side is right.
+                    let (dn, _) = overmodulate_f64(ua, ub, delta + 1e-8);
+                    let (dw, _) = overmodulate_f64(ua, ub, (delta - 1e-8).max(0.0));
+                    if dn.iter().zip(dw).any(|(x, y)| (x - y).abs() > 1e-3) {
+                        ambiguous += 1;
+                        continue;
+                    }
                     for j in 0..3 {
                         dmax = dmax.max((d[j] - dr[j]).abs());
                     }
@@ -553,7 +617,10 @@ mod tests {
                 }
             }
         }
-        println!("duties {dmax:.2e}, length {amax:.2e}, angle {thmax:.2e} rad");
+        println!(
+            "duties {dmax:.2e}, length {amax:.2e}, angle {thmax:.2e} rad, {ambiguous} samples on a threshold"
+        );
+        assert!(ambiguous < 10, "{ambiguous}");
         assert!(
             dmax < 2e-8 && amax < 2e-7 && thmax < 4e-7,
             "{dmax} {amax} {thmax}"
@@ -562,11 +629,19 @@ mod tests {
 
     /// The fundamental of the applied vector over one turn of a request of constant length:
     /// equal to the request in the linear range, nondecreasing with it, and the six-step
-    /// `2/π · V_DC` at and beyond [`OVERMOD_SIX_STEP_REQUEST`]; the reference agrees.
+    /// `2/π · V_DC` at and beyond [`OVERMOD_SIX_STEP_REQUEST`]; the reference agrees. With
+    /// no minimum pulse and with 2.8 % of the period (motor B's dead time at 14 kHz), where
+    /// the linear range ends at `(1 − 2δ)/√3`.
     #[test]
     fn overmodulation_fundamental_grows_to_six_step() {
+        for delta in [0.0, 0.028] {
+            fundamental_grows(delta);
+        }
+    }
+
+    fn fundamental_grows(delta: f64) {
         const N: usize = 3600;
-        let c = SvpwmConfig::overmodulating();
+        let c = SvpwmConfig::overmodulating().with_min_pulse(delta).unwrap();
         let vdc = 1.732_050_8;
         let fundamental = |r: f64, fixed: bool| {
             let (mut x, mut y) = (0.0, 0.0);
@@ -576,7 +651,7 @@ mod tests {
                 let v = if fixed {
                     over(&c, r, th, vdc).1
                 } else {
-                    overmodulate_f64(r * th.cos(), r * th.sin()).1
+                    overmodulate_f64(r * th.cos(), r * th.sin(), delta).1
                 };
                 // Projection on the request's direction (e^{−jθ}).
                 x += v[0] * th.cos() + v[1] * th.sin();
@@ -592,10 +667,10 @@ mod tests {
             let f_ref = fundamental(r, false);
             assert!((f - f_ref).abs() < 1e-6, "r {r}: {f} vs {f_ref}");
             assert!(f >= last - 1e-7, "r {r}: {f} after {last}");
-            if r <= 1.0 / 3f64.sqrt() {
+            if r <= (1.0 - 2.0 * delta) / 3f64.sqrt() {
                 assert!((f - r).abs() < 1e-6, "linear: {r} → {f}");
             } else {
-                assert!(f > 0.577 && f <= six_step + 1e-4, "{r} → {f}");
+                assert!(f >= r.min(0.577) && f <= six_step + 1e-4, "{r} → {f}");
             }
             if r >= OVERMOD_SIX_STEP_REQUEST {
                 assert!((f - six_step).abs() < 2e-4, "six-step: {f} vs {six_step}");
@@ -605,7 +680,7 @@ mod tests {
         // The hexagon with its angle kept (λ = 0 at the vertex length 2/3) gives less: the
         // second region is what reaches six-step.
         let hexagon = fundamental(2.0 / 3.0, true);
-        println!("fundamental at |u| = 2/3: {hexagon:.4}, six-step {six_step:.4}");
+        println!("δ {delta}: fundamental at |u| = 2/3: {hexagon:.4}, six-step {six_step:.4}");
         assert!(hexagon < 0.97 * six_step && hexagon > 0.6, "{hexagon}");
     }
 

@@ -57,6 +57,10 @@ const SALIENCY_MIN: f64 = 0.02;
 /// characteristic current `ψ/L_d` is within the current limit (infinite in theory).
 pub const SPEED_CAP_PER_BASE: f64 = 4.0;
 
+/// The six-step's fundamental over the circle's radius, `(2/π V_DC)/(V_DC/√3) = 2√3/π`: the
+/// voltage an overmodulating drive can hold, per unit of the linear one.
+pub const SIX_STEP_PER_CIRCLE: f64 = 1.102_657_790_843_584_4;
+
 /// [`VOLTAGE_MARGIN`] in Q1.31.
 const MARGIN_Q31: Coef<31> = Coef::from_bits((VOLTAGE_MARGIN * 2_147_483_648.0) as i32);
 /// [`K_FW`] in Q1.31.
@@ -136,8 +140,10 @@ pub fn max_speed_f64(psi: f64, ld: f64, r: f64, id_lim: f64, v_lim: f64, cap: f6
 }
 
 impl FluxConfig {
-    /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `overspeed_pu`
-    /// is the overspeed trip threshold.
+    /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `v_lim_pu` is
+    /// the fundamental voltage the drive holds at the nominal bus, per unit of `V_b` (1, or
+    /// [`SIX_STEP_PER_CIRCLE`] overmodulating), for the maximum speed; `overspeed_pu` is the
+    /// overspeed trip threshold.
     ///
     /// Errors: [`ConfigError::Gain`] for a current limit beyond 11 `I_b` (`I_max²` in Q8.24)
     /// with MTPA or field weakening on.
@@ -146,6 +152,7 @@ impl FluxConfig {
         base: &PerUnit,
         i_max_a: f64,
         design: FluxDesign,
+        v_lim_pu: f64,
         overspeed_pu: f64,
     ) -> Result<Self, ConfigError> {
         // Checked only when used (the speed loop accepts up to 64 I_b).
@@ -183,8 +190,15 @@ impl FluxConfig {
         } else {
             0.0
         };
-        // The nominal bus: V_max = V_b (m = 1).
-        let max_pu = max_speed_f64(psi, ld, r, id_lim, VOLTAGE_MARGIN, SPEED_CAP_PER_BASE);
+        // The nominal bus: V_max = V_b (m = 1), or six-step's fundamental.
+        let max_pu = max_speed_f64(
+            psi,
+            ld,
+            r,
+            id_lim,
+            VOLTAGE_MARGIN * v_lim_pu,
+            SPEED_CAP_PER_BASE,
+        );
         Ok(Self {
             two_a: two_a.unwrap_or(Coef::ZERO),
             k_mtpa,
@@ -344,7 +358,7 @@ mod tests {
     #[test]
     fn mtpa_against_reference() {
         let (m, base) = motor_c();
-        let c = FluxConfig::new(&m, &base, 2.0 * base.current_a, FluxDesign::ON, 2.0).unwrap();
+        let c = FluxConfig::new(&m, &base, 2.0 * base.current_a, FluxDesign::ON, 1.0, 2.0).unwrap();
         let (psi, ld, lq) = (1.0, m.ld_h / base.inductance_h, m.lq_h / base.inductance_h);
         let torque = |id: f64, iq: f64| iq * (psi + (ld - lq) * id);
         let mut f = FluxController::default();
@@ -368,7 +382,7 @@ mod tests {
         // A surface motor (or MTPA off) keeps i_d = 0.
         let mut off = FluxDesign::ON;
         off.mtpa = false;
-        let c0 = FluxConfig::new(&m, &base, base.current_a, off, 2.0).unwrap();
+        let c0 = FluxConfig::new(&m, &base, base.current_a, off, 1.0, 2.0).unwrap();
         f.reset(&c0);
         assert_eq!(settle(&mut f, &c0, 0.8, 0.5).d, Pu::ZERO);
     }
@@ -378,7 +392,7 @@ mod tests {
     #[test]
     fn field_weakening_enters_and_exits() {
         let (m, base) = motor_c();
-        let c = FluxConfig::new(&m, &base, base.current_a, FluxDesign::ON, 2.0).unwrap();
+        let c = FluxConfig::new(&m, &base, base.current_a, FluxDesign::ON, 1.0, 2.0).unwrap();
         let mut f = FluxController::default();
         f.reset(&c);
         let out = settle(&mut f, &c, 0.2, 1.0);

@@ -174,6 +174,11 @@ pub struct DriveDesign {
     pub protection: Protection,
     /// The d-axis reference: MTPA and field weakening (docs/field-weakening.md).
     pub flux: FluxDesign,
+    /// Overmodulation up to six-step beyond the modulator's circle (docs/overmodulation.md;
+    /// default off). On, the current loops' voltage limit becomes
+    /// [`crate::OVERMOD_SIX_STEP_REQUEST`] `V_DC` and field weakening holds the applied
+    /// vector's length within `2 V_DC/3`, the hexagon's vertex.
+    pub overmodulation: bool,
 }
 
 impl DriveDesign {
@@ -207,6 +212,7 @@ impl DriveDesign {
             open_loop: OpenLoopDesign::default_for(motor, base),
             protection: Protection::default_for(inverter, base),
             flux: FluxDesign::default(),
+            overmodulation: false,
         }
     }
 }
@@ -223,6 +229,8 @@ pub struct DriveOptions {
     pub startup: Option<StartupMode>,
     /// Dead-time compensation; `None`: the default of [`DeadTimeDesign::default_for`].
     pub deadtime: Option<DeadTimeMode>,
+    /// Overmodulation up to six-step ([`DriveDesign::overmodulation`]; default off).
+    pub overmodulation: bool,
 }
 
 impl Default for DriveOptions {
@@ -231,6 +239,7 @@ impl Default for DriveOptions {
             estimator: EstimatorKind::MrasCurrent,
             startup: None,
             deadtime: None,
+            overmodulation: false,
         }
     }
 }
@@ -295,6 +304,7 @@ impl DriveConfig {
         if let Some(mode) = options.deadtime {
             design.deadtime.mode = mode;
         }
+        design.overmodulation = options.overmodulation;
         Self::new(motor, inverter, sample_hz, design)
     }
 
@@ -316,6 +326,7 @@ impl DriveConfig {
             &base,
             design.speed.current_limit_a,
             design.flux,
+            voltage_limit_pu(&design),
             overspeed_pu(motor, &base, &design),
         )?;
         #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
@@ -363,7 +374,14 @@ impl DriveConfig {
         in_range("protection.vdc_max_v", p.vdc_max_v, p.vdc_min_v, 1e4)?;
         Ok(Self {
             estimator,
-            current: CurrentConfig::new(motor, &base, design.current)?,
+            current: CurrentConfig::new(motor, &base, {
+                // Overmodulating, the current loops may ask up to six-step's request.
+                let mut c = design.current;
+                if design.overmodulation {
+                    c.modulation *= crate::svpwm::OVERMOD_SIX_STEP_REQUEST * libm::sqrt(3.0);
+                }
+                c
+            })?,
             speed: SpeedConfig::new(motor, &base, design.speed)?,
             speed_filter: match design.speed_filter_rad_s {
                 None => None,
@@ -380,7 +398,13 @@ impl DriveConfig {
                 }
             },
             deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,
-            svpwm: SvpwmConfig::default(),
+            svpwm: if design.overmodulation {
+                // Pulses shorter than the dead time dropped (docs/overmodulation.md).
+                SvpwmConfig::overmodulating()
+                    .with_min_pulse((inverter.dead_time_s * inverter.pwm_hz).clamp(0.0, 0.1))?
+            } else {
+                SvpwmConfig::default()
+            },
             // Only an IPD start-up needs pulses this motor and bus can drive.
             ipd: match design.startup {
                 StartupMode::Ipd => IpdConfig::new(motor, &base, design.ipd)?,
@@ -450,6 +474,16 @@ impl DriveConfig {
     }
 }
 
+/// The fundamental voltage the drive can hold at the nominal bus, per unit of `V_b` (the
+/// circle's radius): 1, or the six-step's `2√3/π` overmodulating.
+fn voltage_limit_pu(design: &DriveDesign) -> f64 {
+    if design.overmodulation {
+        crate::control::flux::SIX_STEP_PER_CIRCLE
+    } else {
+        1.0
+    }
+}
+
 /// Times the highest controllable speed at which the drive trips on overspeed.
 pub const OVERSPEED_FACTOR: f64 = 1.15;
 
@@ -468,7 +502,7 @@ fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f6
         0.0
     };
     let cap = crate::control::flux::SPEED_CAP_PER_BASE;
-    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, 1.0, cap);
+    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, voltage_limit_pu(design), cap);
     (OVERSPEED_FACTOR * w).max(1.2).min(cap)
 }
 

@@ -38,7 +38,7 @@ use crate::frames::{AlphaBeta, Dq, clarke, inverse_park, park};
 use crate::ipd::{Ipd, IpdResult};
 use crate::num::{Pu, Unit, mul_unit};
 use crate::observer::{AnyEstimator, Estimate, Estimator, Frame, ObserverInput};
-use crate::svpwm::{BusReciprocal, Duties};
+use crate::svpwm::{BusReciprocal, Duties, SvpwmOutput};
 use startup::OpenLoop;
 
 /// The drive: configuration and state.
@@ -446,11 +446,17 @@ impl Drive {
         let v_ref = inverse_park(out.v, sc_mid);
         // Dead-time compensation, then the modulator.
         let v_dt = self.deadtime_vector(input, i_ref, sc_mid);
-        let c = &self.config;
-        let m = c
-            .svpwm
-            .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
-        self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
+        let m = if self.config.svpwm.overmodulation() {
+            let v_cmd = self.config.deadtime.command(v_ref, v_dt);
+            self.overmodulate(input, v_cmd)
+        } else {
+            let c = &self.config;
+            let m =
+                c.svpwm
+                    .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
+            self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
+            m
+        };
         self.telemetry.theta = theta;
         self.telemetry.i_dq = i_dq;
         self.telemetry.i_ref = i_ref;
@@ -460,6 +466,33 @@ impl Drive {
             duties: m.duties,
             pwm_on: true,
         }
+    }
+
+    /// [`Drive::control`]'s modulation when overmodulating (docs/overmodulation.md): a leg
+    /// held at duty 0 or 1 does not switch and loses no dead time, and the currents carry the
+    /// harmonics of the overmodulation, which the reference does not; so the estimator is
+    /// given the duties' vector less the dead-time error of the legs that switch, with the
+    /// signs of the measured currents.
+    #[cold]
+    #[inline(never)]
+    fn overmodulate(&mut self, input: &DriveInput, v_cmd: AlphaBeta) -> SvpwmOutput {
+        let c = &self.config;
+        let m = c
+            .svpwm
+            .overmodulate_cached(v_cmd, input.vdc, &mut self.inv_vdc);
+        let d = m.duties;
+        let mut i = input.i_abc;
+        // A zero current is a zero sign: no dead-time error on a held leg.
+        for (x, duty) in [(&mut i.a, d.a), (&mut i.b, d.b), (&mut i.c, d.c)] {
+            if duty == Unit::ZERO || duty == Unit::ONE {
+                *x = Pu::ZERO;
+            }
+        }
+        let v_dt = c
+            .deadtime
+            .error_vector_abc_cached(i, input.vdc, &mut self.deadtime_bus);
+        self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
+        m
     }
 
     /// The dead-time voltage error vector over the coming period (Khlaief, Boussak, Gossa
