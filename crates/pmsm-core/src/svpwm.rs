@@ -56,6 +56,7 @@
 //! `tests/drive_parts_svpwm.rs`.
 
 use crate::error::ConfigError;
+#[cfg(any(test, feature = "overmodulation"))]
 use crate::frames::{Abc, clarke};
 use crate::frames::{AlphaBeta, inverse_clarke};
 use crate::num::{
@@ -73,8 +74,10 @@ pub const DEFAULT_VDC_MIN_PU: f64 = 0.01 * 1.732_050_807_568_877_2;
 /// a range the current loops can regulate in (`λ` grows 8.5 per unit of `|u|²`).
 pub const OVERMOD_SIX_STEP_REQUEST: f64 = 0.75;
 
+#[cfg(any(test, feature = "overmodulation"))]
 /// `4/9`, the squared vertex length in fractions of the bus, Q2.30.
 const VERTEX_SQ_Q30: i64 = 477_218_588;
+#[cfg(any(test, feature = "overmodulation"))]
 /// `1/(R² − 4/9)`, Q24, the slope of `λ` in `|u|²` (`|u|²` below 8 by the saturation of `u`: the product stays below 2⁶¹).
 const LAMBDA_SLOPE_Q24: i64 = ((1u64 << 24) as f64 / (0.5625 - 4.0 / 9.0) + 0.5) as i64;
 
@@ -84,9 +87,11 @@ pub struct SvpwmConfig {
     /// `m/√3` in Q1.31 (`2/3` with overmodulation: the vertex).
     vmax_per_vdc_q31: i32,
     /// Overmodulation to six-step instead of the circle.
+    #[cfg(any(test, feature = "overmodulation"))]
     overmodulation: bool,
     /// Overmodulating, `½ − δ` in Q2.30: a leg whose centred duty passes it is held at its
     /// rail (`δ` the shortest pulse kept, a fraction of the period).
+    #[cfg(any(test, feature = "overmodulation"))]
     rail_q30: i32,
     /// Below this bus, duties ½ and `bus_low`.
     vdc_min: Pu,
@@ -100,7 +105,9 @@ impl Default for SvpwmConfig {
     fn default() -> Self {
         Self {
             vmax_per_vdc_q31: INV_SQRT3_Q31,
+            #[cfg(any(test, feature = "overmodulation"))]
             overmodulation: false,
+            #[cfg(any(test, feature = "overmodulation"))]
             rail_q30: 1 << (UNIT_FRAC - 1),
             vdc_min: pu_from_f64(DEFAULT_VDC_MIN_PU),
             modulation: 1.0,
@@ -116,13 +123,16 @@ impl SvpwmConfig {
         let vmin = in_range("svpwm.vdc_min_pu", vdc_min_pu, 1e-4, 1.0)?;
         Ok(Self {
             vmax_per_vdc_q31: libm::round(m / libm::sqrt(3.0) * 2_147_483_648.0) as i32,
+            #[cfg(any(test, feature = "overmodulation"))]
             overmodulation: false,
+            #[cfg(any(test, feature = "overmodulation"))]
             rail_q30: 1 << (UNIT_FRAC - 1),
             vdc_min: pu_from_f64(vmin),
             modulation: m,
         })
     }
 
+    #[cfg(any(test, feature = "overmodulation"))]
     /// The default modulator with overmodulation up to six-step (module documentation): no
     /// circle, the vector limited only by the hexagon and moved toward its vertices beyond it.
     pub fn overmodulating() -> Self {
@@ -134,6 +144,7 @@ impl SvpwmConfig {
         }
     }
 
+    #[cfg(any(test, feature = "overmodulation"))]
     /// This modulator dropping, when it overmodulates, every pulse shorter than `fraction`
     /// of the period (a leg within `fraction` of a rail is held at the rail): a pulse shorter
     /// than the dead time is swallowed by it, which neither the dead-time compensation nor
@@ -148,9 +159,14 @@ impl SvpwmConfig {
         })
     }
 
-    /// Whether the modulator overmodulates ([`SvpwmConfig::overmodulating`]).
+    /// Whether the modulator overmodulates (`SvpwmConfig::overmodulating`, feature
+    /// `overmodulation`; always false without it).
+    #[inline(always)]
     pub fn overmodulation(&self) -> bool {
-        self.overmodulation
+        #[cfg(any(test, feature = "overmodulation"))]
+        return self.overmodulation;
+        #[cfg(not(any(test, feature = "overmodulation")))]
+        false
     }
 
     /// Largest vector the modulator makes for bus `vdc`: `m · v_dc/√3`, or the vertex
@@ -171,13 +187,14 @@ impl SvpwmConfig {
     /// it from one sample to the next while the bus reading does not change).
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
         let mut cache = BusReciprocal::default();
+        #[cfg(any(test, feature = "overmodulation"))]
         if self.overmodulation {
-            self.overmodulate_cached(v, vdc, &mut cache)
-        } else {
-            self.modulate_cached(v, vdc, &mut cache)
+            return self.overmodulate_cached(v, vdc, &mut cache);
         }
+        self.modulate_cached(v, vdc, &mut cache)
     }
 
+    #[cfg(any(test, feature = "overmodulation"))]
     /// The overmodulating modulator ([`SvpwmConfig::overmodulating`]) with the bus terms of
     /// `cache` (as [`SvpwmConfig::modulate_cached`]): out of line, so the linear modulator's
     /// path keeps its registers and the drive pays one test for the choice.
@@ -248,6 +265,7 @@ impl SvpwmConfig {
     }
 }
 
+#[cfg(any(test, feature = "overmodulation"))]
 /// The overmodulating modulator (module documentation) for a bus above `vdc_min`.
 #[inline(always)]
 fn overmodulate(v: AlphaBeta, vdc: Pu, bus: BusReciprocal, rail: i32) -> SvpwmOutput {

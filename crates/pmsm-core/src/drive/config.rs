@@ -398,13 +398,7 @@ impl DriveConfig {
                 }
             },
             deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,
-            svpwm: if design.overmodulation {
-                // Pulses shorter than the dead time dropped (docs/overmodulation.md).
-                SvpwmConfig::overmodulating()
-                    .with_min_pulse((inverter.dead_time_s * inverter.pwm_hz).clamp(0.0, 0.1))?
-            } else {
-                SvpwmConfig::default()
-            },
+            svpwm: svpwm_config(inverter, &design)?,
             // Only an IPD start-up needs pulses this motor and bus can drive.
             ipd: match design.startup {
                 StartupMode::Ipd => IpdConfig::new(motor, &base, design.ipd)?,
@@ -471,6 +465,31 @@ impl DriveConfig {
     /// Whether dead-time compensation is on.
     pub fn deadtime_compensation(&self) -> bool {
         self.design.deadtime.mode != DeadTimeMode::Off
+    }
+}
+
+/// The modulator: the linear one, or overmodulating with pulses shorter than the dead time
+/// dropped (docs/overmodulation.md); overmodulation asked of a build without it is an error.
+fn svpwm_config(
+    inverter: &InverterParams,
+    design: &DriveDesign,
+) -> Result<SvpwmConfig, ConfigError> {
+    if !design.overmodulation {
+        return Ok(SvpwmConfig::default());
+    }
+    #[cfg(feature = "overmodulation")]
+    return SvpwmConfig::overmodulating()
+        .with_min_pulse((inverter.dead_time_s * inverter.pwm_hz).clamp(0.0, 0.1));
+    #[cfg(not(feature = "overmodulation"))]
+    {
+        let _ = inverter;
+        Err(crate::params::ParamError {
+            key: "overmodulation",
+            reason: crate::params::ParamReason::Inconsistent(
+                "a build with overmodulation (feature overmodulation)",
+            ),
+        }
+        .into())
     }
 }
 

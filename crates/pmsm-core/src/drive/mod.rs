@@ -446,17 +446,15 @@ impl Drive {
         let v_ref = inverse_park(out.v, sc_mid);
         // Dead-time compensation, then the modulator.
         let v_dt = self.deadtime_vector(input, i_ref, sc_mid);
+        let v_cmd = self.config.deadtime.command(v_ref, v_dt);
+        #[cfg(feature = "overmodulation")]
         let m = if self.config.svpwm.overmodulation() {
-            let v_cmd = self.config.deadtime.command(v_ref, v_dt);
             self.overmodulate(input, v_cmd)
         } else {
-            let c = &self.config;
-            let m =
-                c.svpwm
-                    .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
-            self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
-            m
+            self.modulate(v_cmd, vdc, v_dt)
         };
+        #[cfg(not(feature = "overmodulation"))]
+        let m = self.modulate(v_cmd, vdc, v_dt);
         self.telemetry.theta = theta;
         self.telemetry.i_dq = i_dq;
         self.telemetry.i_ref = i_ref;
@@ -468,11 +466,22 @@ impl Drive {
         }
     }
 
+    /// [`Drive::control`]'s linear modulation of the command `v_cmd`; the estimator is given
+    /// the modulated vector less the dead-time error `v_dt`.
+    #[inline(always)]
+    fn modulate(&mut self, v_cmd: AlphaBeta, vdc: Pu, v_dt: AlphaBeta) -> SvpwmOutput {
+        let c = &self.config;
+        let m = c.svpwm.modulate_cached(v_cmd, vdc, &mut self.inv_vdc);
+        self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
+        m
+    }
+
     /// [`Drive::control`]'s modulation when overmodulating (docs/overmodulation.md): a leg
     /// held at duty 0 or 1 does not switch and loses no dead time, and the currents carry the
     /// harmonics of the overmodulation, which the reference does not; so the estimator is
     /// given the duties' vector less the dead-time error of the legs that switch, with the
     /// signs of the measured currents.
+    #[cfg(feature = "overmodulation")]
     #[cold]
     #[inline(never)]
     fn overmodulate(&mut self, input: &DriveInput, v_cmd: AlphaBeta) -> SvpwmOutput {
