@@ -264,6 +264,8 @@ pub struct DriveConfig {
     pub(crate) protection: ProtectionConfig,
     pub(crate) monitor: super::monitor::MonitorConfig,
     pub(crate) flux: FluxConfig,
+    /// [`super::RECTIFY_GRACE_S`] in samples.
+    pub(crate) rectify_grace_samples: u32,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -442,6 +444,7 @@ impl DriveConfig {
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
             flux,
+            rectify_grace_samples: libm::ceil(super::RECTIFY_GRACE_S / ts) as u32,
             base,
             design,
         })
