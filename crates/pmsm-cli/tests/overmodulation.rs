@@ -132,7 +132,7 @@ fn estimator_sees_the_applied_voltage() {
             let ideal = pmsm_plant::InverterModel::ideal_alpha_beta_v(duties, vdc);
             err_sum += (v_est[0] - applied[0]).hypot(v_est[1] - applied[1]);
             dt_sum += (ideal[0] - applied[0]).hypot(ideal[1] - applied[1]);
-            held += duties.iter().filter(|d| **d == 0.0 || **d == 1.0).count();
+            held += duties.iter().filter(|d| d.min(1.0 - **d) < 1e-12).count();
             count += 1;
         }
         for _ in 0..setup.pwm_per_sample {

@@ -63,7 +63,10 @@ fn outcome(run: &Run, emf_rpm: f64) -> Outcome {
             "{:?}",
             r.state
         );
-        assert!(r.pwm_on && r.duties.iter().all(|d| *d == 0.0), "{r:?}");
+        assert!(
+            r.pwm_on && r.duties.iter().all(|d| d.abs() < 1e-12),
+            "{r:?}"
+        );
     }
     Outcome {
         t_cross: run
