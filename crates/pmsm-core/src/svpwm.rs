@@ -23,7 +23,7 @@
 //!
 //! # Overmodulation (optional)
 //!
-//! [`SvpwmConfig::overmodulating`] replaces the circle by a continuous path from the linear
+//! `SvpwmConfig::overmodulating` replaces the circle by a continuous path from the linear
 //! range to six-step (docs/overmodulation.md). With `u = v/V_DC` the request in fractions of
 //! the bus, `s = max − min` of its three phase voltages (`s ≤ 1` is the hexagon) and
 //! `λ = clamp((|u|² − 4/9)/(R² − 4/9), 0, 1)`, `R` = [`OVERMOD_SIX_STEP_REQUEST`]:
@@ -195,7 +195,7 @@ impl SvpwmConfig {
     }
 
     #[cfg(any(test, feature = "overmodulation"))]
-    /// The overmodulating modulator ([`SvpwmConfig::overmodulating`]) with the bus terms of
+    /// The overmodulating modulator (`SvpwmConfig::overmodulating`) with the bus terms of
     /// `cache` (as [`SvpwmConfig::modulate_cached`]): out of line, so the linear modulator's
     /// path keeps its registers and the drive pays one test for the choice.
     #[inline(never)]
@@ -352,8 +352,8 @@ fn overmodulate(v: AlphaBeta, vdc: Pu, bus: BusReciprocal, rail: i32) -> SvpwmOu
     }
 }
 
-/// The overmodulating modulator in f64, the reference of [`SvpwmConfig::overmodulating`]
-/// with [`SvpwmConfig::with_min_pulse`]`(min_pulse)`: for the request `u = (u_α, u_β)` in
+/// The overmodulating modulator in f64, the reference of `SvpwmConfig::overmodulating`
+/// with `SvpwmConfig::with_min_pulse``(min_pulse)`: for the request `u = (u_α, u_β)` in
 /// fractions of the bus, the three duties and the average vector they make, in fractions of
 /// the bus.
 pub fn overmodulate_f64(u_alpha: f64, u_beta: f64, min_pulse: f64) -> ([f64; 3], [f64; 2]) {

@@ -14,6 +14,15 @@
 //! the voltage. `Δ` is clamped so that `i_d*` never goes below `−I_d,lim = −min(I_max, ψ/L_d)`:
 //! beyond `ψ/L_d` the flux reverses and the voltage grows again (anti-windup by clamping).
 //!
+//! With the modulator overmodulating (docs/overmodulation.md) `v` is the vector its duties apply
+//! and `V_max` its longest, the hexagon's vertex `2 V_DC/3`: the loop then regulates the mean
+//! of the applied vector's squared length to `(k · 2 V_DC/3)²`, which grows monotonically with
+//! the request through both overmodulation regions and is reached in the second (fundamental
+//! about 98.8 % of six-step's `2/π V_DC`), inside the current loops' limit `0.75 V_DC`. The
+//! integrator's pole (below) is far slower than the six-per-period ripple of `|v|²` on the
+//! hexagon, which it averages. The maximum speed then uses six-step's fundamental,
+//! [`SIX_STEP_PER_CIRCLE`] times the circle.
+//!
 //! # Discretisation and cost
 //!
 //! The update runs on alternate samples of the closed loop (period `T = 2 T_s`): odd samples
@@ -142,7 +151,7 @@ pub fn max_speed_f64(psi: f64, ld: f64, r: f64, id_lim: f64, v_lim: f64, cap: f6
 impl FluxConfig {
     /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `v_lim_pu` is
     /// the fundamental voltage the drive holds at the nominal bus, per unit of `V_b` (1, or
-    /// [`SIX_STEP_PER_CIRCLE`] overmodulating), for the maximum speed; `overspeed_pu` is the
+    /// `SIX_STEP_PER_CIRCLE` overmodulating), for the maximum speed; `overspeed_pu` is the
     /// overspeed trip threshold.
     ///
     /// Errors: [`ConfigError::Gain`] for a current limit beyond 11 `I_b` (`I_max²` in Q8.24)

@@ -655,7 +655,7 @@ pub const ACTIVE_SHORT: DriveOutput = DriveOutput {
 };
 
 /// How long after a trip into outputs off the phase currents are left to freewheel into the
-/// bus before a current is taken as the diodes rectifying the EMF ([`Drive::faulted`]): the
+/// bus before a current is taken as the diodes rectifying the EMF (docs/field-weakening.md §4): the
 /// decay of the overcurrent limit through the largest inductance against the bus,
 /// `I_oc L/V_DC`, is 0.5 ms for motor B at 540 V and 1.3 ms for motor C at 24 V.
 pub const RECTIFY_GRACE_S: f64 = 3e-3;
