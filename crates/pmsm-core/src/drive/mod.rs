@@ -228,8 +228,9 @@ impl Drive {
     /// rotor beyond what the drive can brake trips first (docs/field-weakening.md, §4). With
     /// the switches off no current flows once the current the trip left has freewheeled into
     /// the bus, unless the EMF's line peak exceeds the bus and the diodes rectify it: a phase
-    /// current beyond 1/8 of the overcurrent limit after [`RECTIFY_GRACE_S`] is that, the
-    /// overspeed the estimator could no longer see, and the drive turns to the active short.
+    /// current beyond 1/8 of the overcurrent limit after [`RECTIFY_GRACE_S`], with the three
+    /// summing to less than that (an offset sensor does not), is that, the overspeed the
+    /// estimator could no longer see, and the drive turns to the active short.
     #[cold]
     #[inline(never)]
     fn faulted(&mut self, input: &DriveInput, fault: Fault) -> DriveOutput {
@@ -242,9 +243,12 @@ impl Drive {
         }
         let lim = self.config.protection.overcurrent.to_bits() >> 3;
         let i = &input.i_abc;
-        if [i.a, i.b, i.c]
-            .iter()
-            .any(|x| x.to_bits().unsigned_abs() > lim as u32)
+        // Rectified phase currents sum to zero (isolated neutral); an offset sensor does not.
+        let sum = i.a.saturating_add(i.b).saturating_add(i.c).to_bits();
+        if sum.unsigned_abs() < lim as u32
+            && [i.a, i.b, i.c]
+                .iter()
+                .any(|x| x.to_bits().unsigned_abs() > lim as u32)
         {
             return self.overspeed(self.telemetry.estimate.omega);
         }
