@@ -35,6 +35,9 @@
 //!         (its own rail): λ = 0 up to |u| = 2/3 (the vertex), λ = 1 at |u| = R (six-step)
 //! ```
 //!
+//! Then a leg within `δ` of a rail is held at it (`SvpwmConfig::with_min_pulse`, the drive
+//! sets `δ` to the dead time over the period): a pulse the dead time would swallow is dropped.
+//!
 //! The commanded vector is then what the duties make, rebuilt from them (two products), so
 //! the estimators see the voltage applied, not the request. [`SvpwmConfig::v_max`] is then
 //! the hexagon's vertex `2 V_DC/3`, the longest vector the duties make, and `saturated` is
@@ -49,6 +52,10 @@
 //! |---|---|---|
 //! | `v`, `v_dc` | [`Pu`] Q8.24 of `V_b = V_DC,nom/√3` | `v_dc` = √3 at the nominal bus |
 //! | duties | [`Unit`] Q2.30 | [0, 1] (clamped; 1 LSB = 9.3e−10 of the period) |
+//! | overmodulating: `u`, the centred legs, `p`, `q`, `½ − δ` | Q2.30 of `V_DC` (`i32`) | `u` saturated at ±2; legs, `p`, `q` within ±½ |
+//! | overmodulating: `|u|²` | Q.60 in `u64`, to Q.30 | < 8 |
+//! | overmodulating: `λ` | Q2.30 | [0, 1]; slope `1/(R² − 4/9)` Q24 |
+//! | overmodulating: `1/s` | [`Reciprocal`] of the span (`s` in `(1, 2³¹)` LSB) | one 32-bit division and two Newton steps per sample beyond the hexagon |
 //! | `1/v_dc` | normalised mantissa in `[2³⁰, 2³¹)` and a shift | one 32-bit division and two Newton steps per new bus reading ([`BusReciprocal`]) |
 //!
 //! Accuracy: the average voltage rebuilt from the duties matches an f64 model within 1 LSB of
