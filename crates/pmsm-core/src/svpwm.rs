@@ -55,7 +55,7 @@
 //! | overmodulating: `u`, the centred legs, `p`, `q`, `½ − δ` | Q2.30 of `V_DC` (`i32`) | `u` saturated at ±2; legs, `p`, `q` within ±½ |
 //! | overmodulating: `|u|²` | Q.60 in `u64`, to Q.30 | < 8 |
 //! | overmodulating: `λ` | Q2.30 | [0, 1]; slope `1/(R² − 4/9)` Q24 |
-//! | overmodulating: `1/s` | [`Reciprocal`] of the span (`s` in `(1, 2³¹)` LSB) | one 32-bit division and two Newton steps per sample beyond the hexagon |
+//! | overmodulating: `1/s` | [`Reciprocal`] of the span (`s` in `(2³⁰, 2³¹)` LSB, saturated) | one 32-bit division and two Newton steps per sample beyond the hexagon |
 //! | `1/v_dc` | normalised mantissa in `[2³⁰, 2³¹)` and a shift | one 32-bit division and two Newton steps per new bus reading ([`BusReciprocal`]) |
 //!
 //! Accuracy: the average voltage rebuilt from the duties matches an f64 model within 1 LSB of
