@@ -111,7 +111,7 @@ pub use control::{
 };
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
-pub use drive::{ACTIVE_SHORT, OVERSPEED_FACTOR};
+pub use drive::{ACTIVE_SHORT, OVERSPEED_FACTOR, RECTIFY_GRACE_S};
 pub use drive::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput,
     DriveOptions, DriveOutput, DriveState, Fault, OpenLoopDesign, Protection, SpeedRefLimit,
@@ -142,5 +142,5 @@ pub use params::{
     InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative, positive,
 };
 pub use recorder::{FaultRecorder, FaultSample};
-pub use svpwm::{Duties, SvpwmConfig, SvpwmOutput};
+pub use svpwm::{Duties, OVERMOD_SIX_STEP_REQUEST, SvpwmConfig, SvpwmOutput, overmodulate_f64};
 pub use units::{PerUnit, to_f64};

@@ -81,6 +81,9 @@ pub struct Control {
     /// speed (default false).
     #[serde(default)]
     pub field_weakening: bool,
+    /// Overmodulation up to six-step beyond the modulator's circle (default false).
+    #[serde(default)]
+    pub overmodulation: bool,
 }
 
 impl Control {

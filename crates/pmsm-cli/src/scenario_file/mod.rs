@@ -28,6 +28,7 @@
 //!                                  # (default 1.0; 0 = off)
 //! mtpa = true                      # optional: maximum torque per ampere (interior motors)
 //! field_weakening = true           # optional: field weakening, speed clamped to the maximum
+//! overmodulation = true            # optional: beyond the circle up to six-step
 //!
 //! [initial]
 //! theta_e_deg = 40.0

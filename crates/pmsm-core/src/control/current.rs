@@ -117,7 +117,8 @@ impl CurrentConfig {
     /// `(0, 1/T_s]`, a `K_p` outside `(0, L/T_s]` or `K_i` outside `[0, K_p/T_s]`, or a
     /// gain outside the fixed-point ranges (`K_p/Z_b` in [2⁻⁹, 2¹⁴), `K_i T_s/Z_b` 0 or in
     /// [2⁻²², 1)) ([`ConfigError::Gain`] naming `current.bandwidth_rad_s`, `current.kp_d`,
-    /// ..., in SI units); `modulation` outside `(0, 1]`.
+    /// ..., in SI units); `modulation` outside `(0, 1.5]` (above 1 for an overmodulating
+    /// modulator only).
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,
@@ -127,7 +128,8 @@ impl CurrentConfig {
         let ts = base.sample_s;
         let z_b = base.impedance_ohm;
         let r = motor.rs_ohm;
-        let m = in_range("current.modulation", design.modulation, 1e-3, 1.0)?;
+        // Up to 1.5: an overmodulating modulator takes requests beyond its circle.
+        let m = in_range("current.modulation", design.modulation, 1e-3, 1.5)?;
         let (kp_d, ki_d, kp_q, ki_q) = {
             let need_bw = design.gains_d.is_none() || design.gains_q.is_none();
             let wc = if need_bw {

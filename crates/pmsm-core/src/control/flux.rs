@@ -14,6 +14,15 @@
 //! the voltage. `Δ` is clamped so that `i_d*` never goes below `−I_d,lim = −min(I_max, ψ/L_d)`:
 //! beyond `ψ/L_d` the flux reverses and the voltage grows again (anti-windup by clamping).
 //!
+//! With the modulator overmodulating (docs/overmodulation.md) `v` is the vector its duties apply
+//! and `V_max` its longest, the hexagon's vertex `2 V_DC/3`: the loop then regulates the mean
+//! of the applied vector's squared length to `(k · 2 V_DC/3)²`, which grows monotonically with
+//! the request through both overmodulation regions and is reached in the second (fundamental
+//! about 98.8 % of six-step's `2/π V_DC`), inside the current loops' limit `0.75 V_DC`. The
+//! integrator's pole (below) is far slower than the six-per-period ripple of `|v|²` on the
+//! hexagon, which it averages. The maximum speed then uses six-step's fundamental,
+//! [`SIX_STEP_PER_CIRCLE`] times the circle.
+//!
 //! # Discretisation and cost
 //!
 //! The drive runs its outer loops in slots (docs/drive.md, "outer loops"): the speed loop on
@@ -60,6 +69,10 @@ const SALIENCY_MIN: f64 = 0.02;
 /// Cap of the maximum speed, times the base speed `ω_b = V_b/ψ`, for motors whose
 /// characteristic current `ψ/L_d` is within the current limit (infinite in theory).
 pub const SPEED_CAP_PER_BASE: f64 = 4.0;
+
+/// The six-step's fundamental over the circle's radius, `(2/π V_DC)/(V_DC/√3) = 2√3/π`: the
+/// voltage an overmodulating drive can hold, per unit of the linear one.
+pub const SIX_STEP_PER_CIRCLE: f64 = 1.102_657_790_843_584_4;
 
 /// [`VOLTAGE_MARGIN`] in Q1.31.
 const MARGIN_Q31: Coef<31> = Coef::from_bits((VOLTAGE_MARGIN * 2_147_483_648.0) as i32);
@@ -141,8 +154,10 @@ pub fn max_speed_f64(psi: f64, ld: f64, r: f64, id_lim: f64, v_lim: f64, cap: f6
 }
 
 impl FluxConfig {
-    /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `overspeed_pu`
-    /// is the overspeed trip threshold.
+    /// The d-axis reference for `motor` with current limit `i_max_a` (A peak); `v_lim_pu` is
+    /// the fundamental voltage the drive holds at the nominal bus, per unit of `V_b` (1, or
+    /// `SIX_STEP_PER_CIRCLE` overmodulating), for the maximum speed; `overspeed_pu` is the
+    /// overspeed trip threshold.
     ///
     /// Errors: [`ConfigError::Gain`] for a current limit beyond 11 `I_b` (`I_max²` in Q8.24)
     /// with MTPA or field weakening on.
@@ -151,6 +166,7 @@ impl FluxConfig {
         base: &PerUnit,
         i_max_a: f64,
         design: FluxDesign,
+        v_lim_pu: f64,
         overspeed_pu: f64,
     ) -> Result<Self, ConfigError> {
         // Checked only when used (the speed loop accepts up to 64 I_b).
@@ -188,8 +204,15 @@ impl FluxConfig {
         } else {
             0.0
         };
-        // The nominal bus: V_max = V_b (m = 1).
-        let max_pu = max_speed_f64(psi, ld, r, id_lim, VOLTAGE_MARGIN, SPEED_CAP_PER_BASE);
+        // The nominal bus: V_max = V_b (m = 1), or six-step's fundamental.
+        let max_pu = max_speed_f64(
+            psi,
+            ld,
+            r,
+            id_lim,
+            VOLTAGE_MARGIN * v_lim_pu,
+            SPEED_CAP_PER_BASE,
+        );
         Ok(Self {
             two_a: two_a.unwrap_or(Coef::ZERO),
             k_mtpa,
@@ -385,7 +408,7 @@ mod tests {
     #[test]
     fn mtpa_against_reference() {
         let (m, base) = motor_c();
-        let c = FluxConfig::new(&m, &base, 2.0 * base.current_a, FluxDesign::ON, 2.0).unwrap();
+        let c = FluxConfig::new(&m, &base, 2.0 * base.current_a, FluxDesign::ON, 1.0, 2.0).unwrap();
         let (psi, ld, lq) = (1.0, m.ld_h / base.inductance_h, m.lq_h / base.inductance_h);
         let torque = |id: f64, iq: f64| iq * (psi + (ld - lq) * id);
         let mut f = FluxController::default();
@@ -409,7 +432,7 @@ mod tests {
         // A surface motor (or MTPA off) keeps i_d = 0.
         let mut off = FluxDesign::ON;
         off.mtpa = false;
-        let c0 = FluxConfig::new(&m, &base, base.current_a, off, 2.0).unwrap();
+        let c0 = FluxConfig::new(&m, &base, base.current_a, off, 1.0, 2.0).unwrap();
         f.reset(&c0);
         assert_eq!(settle(&mut f, &c0, 0.8, 0.5).d, Pu::ZERO);
     }
@@ -419,7 +442,7 @@ mod tests {
     #[test]
     fn field_weakening_enters_and_exits() {
         let (m, base) = motor_c();
-        let c = FluxConfig::new(&m, &base, base.current_a, FluxDesign::ON, 2.0).unwrap();
+        let c = FluxConfig::new(&m, &base, base.current_a, FluxDesign::ON, 1.0, 2.0).unwrap();
         let mut f = FluxController::default();
         f.reset(&c);
         let out = settle(&mut f, &c, 0.2, 1.0);

@@ -174,6 +174,11 @@ pub struct DriveDesign {
     pub protection: Protection,
     /// The d-axis reference: MTPA and field weakening (docs/field-weakening.md).
     pub flux: FluxDesign,
+    /// Overmodulation up to six-step beyond the modulator's circle (docs/overmodulation.md;
+    /// default off). On, the current loops' voltage limit becomes
+    /// [`crate::OVERMOD_SIX_STEP_REQUEST`] `V_DC` and field weakening holds the applied
+    /// vector's length within `2 V_DC/3`, the hexagon's vertex.
+    pub overmodulation: bool,
 }
 
 impl DriveDesign {
@@ -207,6 +212,7 @@ impl DriveDesign {
             open_loop: OpenLoopDesign::default_for(motor, base),
             protection: Protection::default_for(inverter, base),
             flux: FluxDesign::default(),
+            overmodulation: false,
         }
     }
 }
@@ -223,6 +229,8 @@ pub struct DriveOptions {
     pub startup: Option<StartupMode>,
     /// Dead-time compensation; `None`: the default of [`DeadTimeDesign::default_for`].
     pub deadtime: Option<DeadTimeMode>,
+    /// Overmodulation up to six-step ([`DriveDesign::overmodulation`]; default off).
+    pub overmodulation: bool,
 }
 
 impl Default for DriveOptions {
@@ -231,6 +239,7 @@ impl Default for DriveOptions {
             estimator: EstimatorKind::MrasCurrent,
             startup: None,
             deadtime: None,
+            overmodulation: false,
         }
     }
 }
@@ -260,6 +269,8 @@ pub struct DriveConfig {
     pub(crate) protection: ProtectionConfig,
     pub(crate) monitor: super::monitor::MonitorConfig,
     pub(crate) flux: FluxConfig,
+    /// [`super::RECTIFY_GRACE_S`] in samples.
+    pub(crate) rectify_grace_samples: u32,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -300,6 +311,7 @@ impl DriveConfig {
         if let Some(mode) = options.deadtime {
             design.deadtime.mode = mode;
         }
+        design.overmodulation = options.overmodulation;
         Self::new(motor, inverter, sample_hz, design)
     }
 
@@ -321,6 +333,7 @@ impl DriveConfig {
             &base,
             design.speed.current_limit_a,
             design.flux,
+            voltage_limit_pu(&design),
             overspeed_pu(motor, &base, &design),
         )?;
         #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
@@ -385,7 +398,14 @@ impl DriveConfig {
         in_range("protection.vdc_max_v", p.vdc_max_v, p.vdc_min_v, 1e4)?;
         Ok(Self {
             estimator,
-            current: CurrentConfig::new(motor, &base, design.current)?,
+            current: CurrentConfig::new(motor, &base, {
+                // Overmodulating, the current loops may ask up to six-step's request.
+                let mut c = design.current;
+                if design.overmodulation {
+                    c.modulation *= crate::svpwm::OVERMOD_SIX_STEP_REQUEST * libm::sqrt(3.0);
+                }
+                c
+            })?,
             speed: SpeedConfig::new(motor, &base, design.speed)?,
             speed_mask,
             speed_shift,
@@ -404,7 +424,7 @@ impl DriveConfig {
                 }
             },
             deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,
-            svpwm: SvpwmConfig::default(),
+            svpwm: svpwm_config(inverter, &design)?,
             // Only an IPD start-up needs pulses this motor and bus can drive.
             ipd: match design.startup {
                 StartupMode::Ipd => IpdConfig::new(motor, &base, design.ipd)?,
@@ -448,6 +468,7 @@ impl DriveConfig {
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
             flux,
+            rectify_grace_samples: libm::ceil(super::RECTIFY_GRACE_S / ts) as u32,
             base,
             design,
         })
@@ -474,6 +495,41 @@ impl DriveConfig {
     }
 }
 
+/// The modulator: the linear one, or overmodulating with pulses shorter than the dead time
+/// dropped (docs/overmodulation.md); overmodulation asked of a build without it is an error.
+fn svpwm_config(
+    inverter: &InverterParams,
+    design: &DriveDesign,
+) -> Result<SvpwmConfig, ConfigError> {
+    if !design.overmodulation {
+        return Ok(SvpwmConfig::default());
+    }
+    #[cfg(feature = "overmodulation")]
+    return SvpwmConfig::overmodulating()
+        .with_min_pulse((inverter.dead_time_s * inverter.pwm_hz).clamp(0.0, 0.1));
+    #[cfg(not(feature = "overmodulation"))]
+    {
+        let _ = inverter;
+        Err(crate::params::ParamError {
+            key: "overmodulation",
+            reason: crate::params::ParamReason::Inconsistent(
+                "a build with overmodulation (feature overmodulation)",
+            ),
+        }
+        .into())
+    }
+}
+
+/// The fundamental voltage the drive can hold at the nominal bus, per unit of `V_b` (the
+/// circle's radius): 1, or the six-step's `2√3/π` overmodulating.
+fn voltage_limit_pu(design: &DriveDesign) -> f64 {
+    if design.overmodulation {
+        crate::control::flux::SIX_STEP_PER_CIRCLE
+    } else {
+        1.0
+    }
+}
+
 /// Times the highest controllable speed at which the drive trips on overspeed.
 pub const OVERSPEED_FACTOR: f64 = 1.15;
 
@@ -492,7 +548,7 @@ fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f6
         0.0
     };
     let cap = crate::control::flux::SPEED_CAP_PER_BASE;
-    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, 1.0, cap);
+    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, voltage_limit_pu(design), cap);
     (OVERSPEED_FACTOR * w).max(1.2).min(cap)
 }
 

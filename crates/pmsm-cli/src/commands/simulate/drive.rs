@@ -105,6 +105,7 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     }
     design.flux.mtpa = c.mtpa;
     design.flux.field_weakening = c.field_weakening;
+    design.overmodulation = c.overmodulation;
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
     if let Some(g) = c.observer_gain {
