@@ -441,6 +441,21 @@ mod app {
             }
             event = Event::Break;
         }
+        // The drive of an identified motor, taken in Idle, before this sample is scaled (its
+        // bases may differ).
+        if COMMISSIONING
+            && !c.commissioning
+            && c.drive.state() == DriveState::Idle
+            && let Some(r) = cx.shared.rebuilt.lock(|r| r.pop())
+        {
+            c.drive = Drive::new(r.config);
+            c.drive_scaling = Scaling {
+                offsets: c.adc.scaling.offsets,
+                ..r.scaling
+            };
+            c.adc.scaling = c.drive_scaling;
+            event = Event::DriveRebuilt;
+        }
         // One sample for either path (one inlined copy of the scaling).
         let input = c.adc.sample();
         if COMMISSIONING && c.commissioning {
@@ -454,18 +469,6 @@ mod app {
                 event,
             );
             return;
-        }
-        if COMMISSIONING
-            && c.drive.state() == DriveState::Idle
-            && let Some(r) = cx.shared.rebuilt.lock(|r| r.pop())
-        {
-            c.drive = Drive::new(r.config);
-            c.drive_scaling = Scaling {
-                offsets: c.adc.scaling.offsets,
-                ..r.scaling
-            };
-            c.adc.scaling = c.drive_scaling;
-            event = Event::DriveRebuilt;
         }
         c.drive.set_speed_ref(c.speed_ref);
         let out = c.drive.step(&input);
