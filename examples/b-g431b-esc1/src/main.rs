@@ -1,13 +1,14 @@
 //! Sensorless PMSM drive on ST's B-G431B-ESC1, as an RTIC app: 170 MHz, TIM1 20 kHz
 //! centre-aligned PWM with 0.5 µs dead time, injected ADC conversions at the PWM centre;
-//! initial position by voltage pulses, current-model MRAS; a commissioning mode that
-//! identifies the motor connected (`pmsm_core::Identify`, `docs/identification.md`).
+//! initial position by voltage pulses, current-model MRAS; with the feature `commissioning`,
+//! a mode that identifies the motor connected (`pmsm_core::Identify`,
+//! `docs/identification.md`; README.md says why it is not in the default image).
 //!
 //! | task | priority | owns | does |
 //! |---|---|---|---|
 //! | `control` (ADC1_2, every PWM period) | 3 | the drive, TIM1, the injected ADCs | offset calibration, the drive step or the identification's step, the fault recorder |
 //! | `ui` (SPI1 vector, pended by `control` every 10 ms) | 2 | the knob, the button | speed reference, start/stop/clear fault, commissioning (long press) |
-//! | `idle` | 0 | the logger | defmt logs: state, speed, cycles; the recorder after a fault; the identification's `f64` work (`Identify::poll`), the identified motor and the drive rebuilt from it |
+//! | `idle` | 0 | the logger | defmt logs: state, speed, cycles; the recorder after a fault; the identification's `f32` fits (`Identify::poll`), the identified motor and the drive rebuilt from it |
 //!
 //! No `static mut` and no shared flags: the tasks talk through two `heapless::spsc::Queue`s,
 //! commands `ui` → `control` and reports `control` → `idle`, and share the fault recorder,
@@ -15,9 +16,9 @@
 //! identification (stepped by `control`, polled by `idle`) and the drive configuration that
 //! `idle` builds from an identified motor. All are RTIC resources: `control`'s locks cost
 //! nothing (top priority), the others' mask it for one enqueue, dequeue or copy, except
-//! `Identify::poll`, which masks it for its `f64` fits (three times per identification, while
-//! the identification holds its voltage or has turned the outputs off: the samples it delays
-//! change nothing). (The queues are not split into producer and consumer
+//! `Identify::poll`, which masks it for its fits (up to about 20 000 instructions, three times
+//! per identification, while the identification holds its voltage or has turned the outputs
+//! off: the samples it delays change nothing). (The queues are not split into producer and consumer
 //! halves: the halves compute the ring position modulo a length they only know at run time,
 //! a panic path that CI's check of the image rejects; a whole `Queue` knows its length.)
 //!
