@@ -392,6 +392,7 @@ mod app {
             }
             match cmd {
                 Command::Speed(w) => c.speed_ref = w,
+                Command::Commission if !COMMISSIONING => {}
                 Command::Commission => {
                     event = match c.commission {
                         Some((config, scaling))
@@ -761,6 +762,13 @@ mod app {
     fn log(l: &mut Logger, r: &Report) {
         match r.event {
             Event::None => {}
+            // Without the mode these never come (the guards drop their code).
+            Event::CommissionStarted
+            | Event::CommissionRefused
+            | Event::CommissionAborted
+            | Event::CommissionEnded
+            | Event::DriveRebuilt
+                if !COMMISSIONING => {}
             Event::CommissionStarted => defmt::info!(
                 "commissioning: identifying the motor ({=u32} pole pairs, limit {=f32} A); the button stops it",
                 motor::POLE_PAIRS,
@@ -782,7 +790,7 @@ mod app {
                 "break input: outputs off in hardware; stop (knob or button) to re-arm"
             ),
         }
-        if let Some(stage) = r.stage {
+        if COMMISSIONING && let Some(stage) = r.stage {
             defmt::info!("commissioning: {=str} step", stage_name(stage));
             return;
         }
