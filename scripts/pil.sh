@@ -9,7 +9,10 @@
 #      exited 0 with an exact calibration, benchmark figures, a bit-exact replay (on the
 #      Cortex-M4 also of the drive and the plant in a closed loop on the target) and a drive
 #      step within its instruction budget (1500 on Cortex-M4, 4000 on Cortex-M0), else
-#      `PIL FAIL` (exit 1).
+#      `PIL FAIL` (exit 1);
+#   5. builds and runs, on both machines, the image of feature `identify` (the
+#      identification's benchmarks, no recording: the micro:bit cannot hold both), which must
+#      identify its plant with `identify_step` within the same budgets.
 #
 # Needs: rustup target add thumbv7em-none-eabihf thumbv6m-none-eabi;
 #        apt-get install -y qemu-system-arm.
@@ -109,6 +112,42 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
     tail -n 20 "$run_log" | sed 's/^/    /' >&2
   fi
 done
+
+# 5. The identification's image (feature `identify`).
+log "building the identification's image (feature identify)"
+if PIL_RECORDING="$recording" cargo build --release -p pmsm-pil-firmware --features identify \
+  --target thumbv7em-none-eabihf --target thumbv6m-none-eabi >&2; then
+  for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
+    read -r cpu triple <<<"$run"
+    run_log="$out/$cpu-identify.log"
+    log "running $cpu's identification in QEMU (timeout ${timeout_s}s) -> $run_log"
+    rc=0
+    PIL_RECORDING="$recording" timeout "$timeout_s" \
+      cargo run --release -q -p pmsm-pil-firmware --features identify --target "$triple" \
+      </dev/null >"$run_log" 2>&1 || rc=$?
+    grep -E "^# $cpu " "$run_log" | sed 's/^/pil: /' >&2 || true
+    mapfile -t got < <(grep -E "^PIL $cpu identify_" "$run_log" || true)
+    lines+=("${got[@]}")
+    worst="$(grep -oE "^PIL $cpu identify_step insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
+      sed -E 's/.*insn_max=//')"
+    budget=${budgets[$cpu]}
+    if [[ $rc -ne 0 ]]; then
+      status=1
+      log "$cpu identification: exit status $rc (did not identify its plant?); last lines:"
+      tail -n 20 "$run_log" | sed 's/^/    /' >&2
+    elif [[ -z $worst ]]; then
+      status=1
+      log "$cpu identification: no identify_step figure"
+    elif ((worst > budget)); then
+      status=1
+      log "$cpu identification: identify_step insn_max=$worst over the budget of $budget"
+    fi
+  done
+else
+  status=1
+  log "the identification's image does not build"
+fi
+
 if [[ "${components[cortex-m4]}" != "${components[cortex-m0]}" ]]; then
   status=1
   log "the two machines report different components:"

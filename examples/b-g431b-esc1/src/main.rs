@@ -1,18 +1,24 @@
 //! Sensorless PMSM drive on ST's B-G431B-ESC1, as an RTIC app: 170 MHz, TIM1 20 kHz
 //! centre-aligned PWM with 0.5 µs dead time, injected ADC conversions at the PWM centre;
-//! initial position by voltage pulses, current-model MRAS.
+//! initial position by voltage pulses, current-model MRAS; with the feature `commissioning`,
+//! a mode that identifies the motor connected (`pmsm_core::Identify`,
+//! `docs/identification.md`; README.md says why it is not in the default image).
 //!
 //! | task | priority | owns | does |
 //! |---|---|---|---|
-//! | `control` (ADC1_2, every PWM period) | 3 | the drive, TIM1, the injected ADCs | offset calibration, the drive step, the fault recorder |
-//! | `ui` (SPI1 vector, pended by `control` every 10 ms) | 2 | the knob, the button | speed reference, start/stop/clear fault |
-//! | `idle` | 0 | the logger | defmt logs: state, speed, cycles; the recorder after a fault |
+//! | `control` (ADC1_2, every PWM period) | 3 | the drive, TIM1, the injected ADCs | offset calibration, the drive step or the identification's step, the fault recorder |
+//! | `ui` (SPI1 vector, pended by `control` every 10 ms) | 2 | the knob, the button | speed reference, start/stop/clear fault, commissioning (long press) |
+//! | `idle` | 0 | the logger | defmt logs: state, speed, cycles; the recorder after a fault; the identification's `f32` fits (`Identify::poll`), the identified motor and the drive rebuilt from it |
 //!
 //! No `static mut` and no shared flags: the tasks talk through two `heapless::spsc::Queue`s,
 //! commands `ui` → `control` and reports `control` → `idle`, and share the fault recorder,
-//! which `control` writes and the logger reads sample by sample once it is frozen. All three
-//! are RTIC resources: `control`'s locks cost nothing (top priority), the others' mask it
-//! for one enqueue, dequeue or copy. (The queues are not split into producer and consumer
+//! which `control` writes and the logger reads sample by sample once it is frozen, the
+//! identification (stepped by `control`, polled by `idle`) and the drive configuration that
+//! `idle` builds from an identified motor. All are RTIC resources: `control`'s locks cost
+//! nothing (top priority), the others' mask it for one enqueue, dequeue or copy, except
+//! `Identify::poll`, which masks it for its fits (up to about 20 000 instructions, three times
+//! per identification, while the identification holds its voltage or has turned the outputs
+//! off: the samples it delays change nothing). (The queues are not split into producer and consumer
 //! halves: the halves compute the ring position modulo a length they only know at run time,
 //! a panic path that CI's check of the image rejects; a whole `Queue` knows its length.)
 //!
@@ -39,16 +45,29 @@ fn halt(why: &str) -> ! {
 mod app {
     use super::{board, halt, motor};
     use cortex_m::peripheral::DWT;
+    use heapless::Vec;
     use heapless::spsc::Queue;
-    use pmsm_core::{Drive, DriveConfig, DriveOptions, DriveState, FaultRecorder, Pu};
+    use pmsm_core::{Drive, DriveConfig, DriveInput, DriveOptions, DriveState, FaultRecorder, Pu};
+    use pmsm_core::{
+        Identified, Identify, IdentifyConfig, IdentifyDesign, IdentifyError, IdentifyOutput, Stage,
+        clarke,
+    };
     use pmsm_stm32::adc::{KnobCommand, OffsetCalibration, Scaling, SpeedKnob};
     use pmsm_stm32::hw::{self, InjectedAdc, Tim1Pwm};
     use pmsm_stm32::timing::{DeadTime, PwmTiming};
     use pmsm_stm32::{PhaseCurrentSampler, ThreePhasePwm, apply};
+    use rtic::Mutex;
     use stm32g4::stm32g431 as pac;
 
     /// Samples kept before a fault: 3.2 ms at 20 kHz (44 bytes each).
     const RECORD: usize = 64;
+    /// The commissioning mode is built in (feature `commissioning`: with it the image
+    /// exceeds the 64 KiB budget, see the README). Without it every commissioning path is
+    /// dead code (the compiler drops it) and its slots hold nothing.
+    const COMMISSIONING: bool = cfg!(feature = "commissioning");
+    /// Capacity of the identification's and the rebuilt drive's slots: 1 with the mode,
+    /// 0 (no RAM) without.
+    const SLOTS: usize = COMMISSIONING as usize;
     /// Control samples between two runs of `ui` (10 ms).
     const UI_PERIOD: u32 = motor::PWM_HZ / 100;
     /// Control samples between two periodic reports (100 ms).
@@ -61,8 +80,11 @@ mod app {
         Start,
         /// Outputs off, back to `Idle`; re-arms after a hardware break.
         Stop,
-        /// Button: clear a fault (and re-arm the recorder), else start from `Idle`, else stop.
+        /// Button (short press): clear a fault (and re-arm the recorder), else start from
+        /// `Idle`, else stop (or abort a commissioning run).
         Button,
+        /// Button (long press): identify the motor, from `Idle` only.
+        Commission,
         /// Speed reference, per unit of `ω_b` (Q8.24).
         Speed(Pu),
     }
@@ -78,6 +100,17 @@ mod app {
         CalibrationFailed,
         /// The break input turned the outputs off in hardware.
         Break,
+        /// Commissioning started (outputs on, identification stepping).
+        CommissionStarted,
+        /// Commissioning asked for outside `Idle` (or without an identification
+        /// configuration): nothing done.
+        CommissionRefused,
+        /// Commissioning stopped by the button, the knob or the break input.
+        CommissionAborted,
+        /// The identification's sequence ended (outputs off); `idle` reports the result.
+        CommissionEnded,
+        /// The drive was rebuilt from the identified motor.
+        DriveRebuilt,
     }
 
     /// `control` → `idle`: on a state change, an event, and every 100 ms.
@@ -91,6 +124,15 @@ mod app {
         /// Worst control interrupt so far, CPU cycles.
         max_cycles: u32,
         event: Event,
+        /// The identification's stage while commissioning.
+        stage: Option<Stage>,
+    }
+
+    /// A drive built by `idle` from an identified motor, for `control` to take in `Idle`.
+    pub struct Rebuilt {
+        config: DriveConfig,
+        /// The ADC scaling to its bases (offsets are kept).
+        scaling: Scaling,
     }
 
     /// What the control interrupt owns.
@@ -107,6 +149,15 @@ mod app {
         max_cycles: u32,
         tick: u32,
         last_state: DriveState,
+        /// The ADC scaling to the drive's bases (offsets set by the calibration).
+        drive_scaling: Scaling,
+        /// The identification's configuration and its ADC scaling (current per unit of the
+        /// commissioning limit, voltage per unit of `V_DC/√3`); `None`: commissioning
+        /// unavailable (logged at start-up).
+        commission: Option<(IdentifyConfig, Scaling)>,
+        /// Commissioning runs: the identification, not the drive, drives the outputs.
+        commissioning: bool,
+        last_stage: Option<Stage>,
     }
 
     /// The knob (ADC1 regular channel) and the button.
@@ -115,12 +166,14 @@ mod app {
         gpioc: pac::GPIOC,
         knob: SpeedKnob,
         knob_running: bool,
-        /// Consecutive polls with the button down (debounce: 3 polls, 30 ms).
+        /// Consecutive polls with the button down (debounce: 3 polls, 30 ms; a long press:
+        /// [`board::LONG_PRESS_POLLS`]).
         pressed_polls: u8,
     }
 
     /// The logger's state.
     pub struct Logger {
+        /// Mechanical r/min per unit of speed (changes with a rebuilt drive).
         rpm_per_pu: f32,
         last_state: Option<DriveState>,
         /// Samples of the frozen recorder already logged.
@@ -134,6 +187,10 @@ mod app {
         commands: Queue<Command, 8>,
         /// `control` → `idle`.
         reports: Queue<Report, 16>,
+        /// The commissioning run: `control` steps it, `idle` polls it (at most one).
+        identify: Vec<Identify, SLOTS>,
+        /// `idle` → `control`: the drive of the identified motor (at most one).
+        rebuilt: Vec<Rebuilt, SLOTS>,
     }
 
     #[local]
@@ -196,6 +253,11 @@ mod app {
         };
         let mut adc =
             InjectedAdc::new(dp.ADC1, dp.ADC2, &dp.ADC12_COMMON, board::CHANNELS, scaling);
+        let commission = if COMMISSIONING {
+            commission_config(&inv)
+        } else {
+            None
+        };
         let pwm = Tim1Pwm::new(dp.TIM1, timing, dead, board::BREAK, false);
         board::pwm_pins(&dp.GPIOA, &dp.GPIOB, &dp.GPIOC);
         board::button_pin(&dp.GPIOC);
@@ -217,6 +279,10 @@ mod app {
             max_cycles: 0,
             tick: 0,
             last_state: DriveState::Idle,
+            drive_scaling: scaling,
+            commission,
+            commissioning: false,
+            last_stage: None,
         };
         let ui = Ui {
             adc1,
@@ -236,6 +302,8 @@ mod app {
                 recorder: FaultRecorder::new(),
                 commands: Queue::new(),
                 reports: Queue::new(),
+                identify: Vec::new(),
+                rebuilt: Vec::new(),
             },
             Local {
                 control,
@@ -245,8 +313,44 @@ mod app {
         )
     }
 
+    /// The identification of the motor connected: its pole pairs and the inverter from
+    /// `motor.rs`, the current limit from `board.rs`, the default design. `None` (logged) if
+    /// the configuration or its ADC scaling fails: the drive runs, commissioning is refused.
+    fn commission_config(inv: &pmsm_core::InverterParams) -> Option<(IdentifyConfig, Scaling)> {
+        let config = match IdentifyConfig::new(
+            motor::POLE_PAIRS,
+            inv,
+            board::COMMISSION_CURRENT_A,
+            IdentifyDesign::default(),
+        ) {
+            Ok(c) => c,
+            Err(e) => {
+                defmt::warn!("commissioning unavailable: {}", e);
+                return None;
+            }
+        };
+        let (Ok(current), Ok(voltage)) = (
+            board::CURRENT.scale(config.current_base_a),
+            board::VBUS.scale(config.voltage_base_v),
+        ) else {
+            defmt::warn!("commissioning unavailable: ADC scaling out of range");
+            return None;
+        };
+        let scaling = Scaling {
+            current,
+            voltage,
+            offsets: [2048; 3],
+        };
+        Some((config, scaling))
+    }
+
     /// The control interrupt: ADC1's end of injected sequence, once per PWM period.
-    #[task(binds = ADC1_2, priority = 3, local = [control], shared = [recorder, commands, reports])]
+    #[task(
+        binds = ADC1_2,
+        priority = 3,
+        local = [control],
+        shared = [recorder, commands, reports, identify, rebuilt]
+    )]
     fn control(mut cx: control::Context) {
         let start = DWT::cycle_count();
         let c = cx.local.control;
@@ -273,8 +377,45 @@ mod app {
         }
         let mut event = Event::None;
         while let Some(cmd) = cx.shared.commands.lock(|q| q.dequeue()) {
+            if COMMISSIONING && c.commissioning {
+                // Anything that would stop the drive stops the identification.
+                match cmd {
+                    Command::Speed(w) => c.speed_ref = w,
+                    Command::Stop | Command::Button => {
+                        end_commissioning(c);
+                        cx.shared.identify.lock(|id| id.clear());
+                        event = Event::CommissionAborted;
+                    }
+                    Command::Start | Command::Commission => {}
+                }
+                continue;
+            }
             match cmd {
                 Command::Speed(w) => c.speed_ref = w,
+                Command::Commission if !COMMISSIONING => {}
+                Command::Commission => {
+                    event = match c.commission {
+                        Some((config, scaling))
+                            if COMMISSIONING
+                                && c.drive.state() == DriveState::Idle
+                                && !c.latched =>
+                        {
+                            c.adc.scaling = Scaling {
+                                offsets: c.adc.scaling.offsets,
+                                ..scaling
+                            };
+                            cx.shared.identify.lock(|id| {
+                                id.clear();
+                                // Capacity 1 here: always fits.
+                                let _ = id.push(Identify::new(config));
+                            });
+                            c.commissioning = true;
+                            c.last_stage = None;
+                            Event::CommissionStarted
+                        }
+                        _ => Event::CommissionRefused,
+                    };
+                }
                 // `start` acts only from Idle: a fault needs the button first.
                 Command::Start if !c.latched => c.drive.start(),
                 Command::Start => {}
@@ -293,13 +434,45 @@ mod app {
                 },
             }
         }
-        c.drive.set_speed_ref(c.speed_ref);
         if c.pwm.take_break() {
             c.latched = true;
             c.drive.stop();
+            if COMMISSIONING && c.commissioning {
+                end_commissioning(c);
+                cx.shared.identify.lock(|id| id.clear());
+            }
             event = Event::Break;
         }
+        // The drive of an identified motor, taken in Idle, before this sample is scaled (its
+        // bases may differ).
+        if COMMISSIONING
+            && !c.commissioning
+            && c.drive.state() == DriveState::Idle
+            && let Some(r) = cx.shared.rebuilt.lock(|r| r.pop())
+        {
+            c.drive = Drive::new(r.config);
+            c.drive_scaling = Scaling {
+                offsets: c.adc.scaling.offsets,
+                ..r.scaling
+            };
+            c.adc.scaling = c.drive_scaling;
+            event = Event::DriveRebuilt;
+        }
+        // One sample for either path (one inlined copy of the scaling).
         let input = c.adc.sample();
+        if COMMISSIONING && c.commissioning {
+            let shared = &mut cx.shared;
+            commission_step(
+                c,
+                &input,
+                &mut shared.identify,
+                &mut shared.reports,
+                start,
+                event,
+            );
+            return;
+        }
+        c.drive.set_speed_ref(c.speed_ref);
         let out = c.drive.step(&input);
         apply(&mut c.pwm, &out);
         cx.shared.recorder.lock(|r| r.record(&c.drive, &input));
@@ -316,6 +489,71 @@ mod app {
         }
     }
 
+    /// One sample of commissioning: the identification's step on the currents in its per
+    /// unit, its duties to TIM1; the outputs go off and the drive's scaling comes back when
+    /// its sequence ends (`idle` then polls the result). `start`: the interrupt's first cycle.
+    fn commission_step(
+        c: &mut Control,
+        input: &DriveInput,
+        identify: &mut impl Mutex<T = Vec<Identify, SLOTS>>,
+        reports: &mut impl Mutex<T = Queue<Report, 16>>,
+        start: u32,
+        event: Event,
+    ) {
+        let i = clarke(input.i_abc);
+        let out = identify.lock(|id| id.first_mut().map(|id| id.step(i, input.vdc)));
+        let mut event = event;
+        let mut stage = c.last_stage;
+        match out {
+            Some(o) => {
+                apply_identify(&mut c.pwm, &o);
+                stage = Some(o.stage);
+                if o.finished {
+                    end_commissioning(c);
+                    event = Event::CommissionEnded;
+                }
+            }
+            None => {
+                end_commissioning(c);
+                event = Event::CommissionAborted;
+            }
+        }
+        let cycles = DWT::cycle_count().wrapping_sub(start);
+        c.max_cycles = c.max_cycles.max(cycles);
+        if cycles > c.budget && c.commissioning {
+            // The identification has no overrun report of its own: stop it.
+            end_commissioning(c);
+            identify.lock(|id| id.clear());
+            event = Event::CommissionAborted;
+        }
+        if event != Event::None || stage != c.last_stage {
+            c.last_stage = stage;
+            reports.lock(|q| report(q, c, event));
+        }
+    }
+
+    /// The identification's duties to TIM1 (as `apply` does the drive's).
+    fn apply_identify(pwm: &mut Tim1Pwm, o: &IdentifyOutput) {
+        if o.pwm_on {
+            pwm.set_duties(&o.duties);
+            if !pwm.is_enabled() {
+                pwm.enable();
+            }
+        } else if pwm.is_enabled() {
+            pwm.disable();
+        }
+    }
+
+    /// Outputs off, the drive's ADC scaling back: the drive (still `Idle`) takes over.
+    fn end_commissioning(c: &mut Control) {
+        c.pwm.disable();
+        c.commissioning = false;
+        c.adc.scaling = Scaling {
+            offsets: c.adc.scaling.offsets,
+            ..c.drive_scaling
+        };
+    }
+
     /// Queues a report for the logger (dropped if the logger is behind: the next one tells).
     fn report(q: &mut Queue<Report, 16>, c: &Control, event: Event) {
         let _ = q.enqueue(Report {
@@ -324,6 +562,7 @@ mod app {
             speed_ref: c.speed_ref,
             max_cycles: c.max_cycles,
             event,
+            stage: if c.commissioning { c.last_stage } else { None },
         });
     }
 
@@ -352,12 +591,21 @@ mod app {
             KnobCommand::Stop => {}
         }
         u.knob_running = running;
+        // With the mode a short press acts when released (held 30 ms to 2 s), a long one
+        // once held 2 s.
+        // Without the mode the button acts once held 30 ms.
         if board::button_down(&u.gpioc) {
             u.pressed_polls = u.pressed_polls.saturating_add(1);
-            if u.pressed_polls == 3 {
+            if !COMMISSIONING && u.pressed_polls == 3 {
                 send(Command::Button);
             }
+            if COMMISSIONING && u.pressed_polls == board::LONG_PRESS_POLLS {
+                send(Command::Commission);
+            }
         } else {
+            if COMMISSIONING && (3..board::LONG_PRESS_POLLS).contains(&u.pressed_polls) {
+                send(Command::Button);
+            }
             u.pressed_polls = 0;
         }
     }
@@ -371,12 +619,31 @@ mod app {
     }
 
     /// The logger: reports as they come, and the recorder's samples once a fault froze it.
-    #[idle(local = [logger], shared = [recorder, reports])]
+    #[idle(local = [logger], shared = [recorder, reports, identify, rebuilt])]
     fn idle(mut cx: idle::Context) -> ! {
         let l = cx.local.logger;
         loop {
             while let Some(r) = cx.shared.reports.lock(|q| q.dequeue()) {
                 log(l, &r);
+            }
+            // The identification's background work; its result once.
+            if COMMISSIONING
+                && let Some(result) = cx
+                    .shared
+                    .identify
+                    .lock(|id| id.first_mut().and_then(Identify::poll))
+            {
+                match result {
+                    Ok(found) => {
+                        if let Some(r) = rebuild(l, &found) {
+                            cx.shared.rebuilt.lock(|slot| {
+                                slot.clear();
+                                let _ = slot.push(r);
+                            });
+                        }
+                    }
+                    Err(e) => log_identify_error(e),
+                }
             }
             // One sample per lock: the control interrupt waits at most one copy.
             let n = l.dumped;
@@ -405,9 +672,116 @@ mod app {
         }
     }
 
+    /// Logs the identified motor as a motor file (the keys `pmsm identify` writes, ratings
+    /// from `motor.rs`) and builds the drive for it; `None` (logged) if the drive's
+    /// configuration rejects it: the compiled-in motor stays.
+    fn rebuild(l: &mut Logger, found: &Identified) -> Option<Rebuilt> {
+        let mut m = found.motor;
+        let rated = motor::motor();
+        m.rated_current_a = rated.rated_current_a;
+        m.rated_speed_rpm = rated.rated_speed_rpm;
+        // One frame (one call: flash), a motor file line by line. The ratings are not
+        // identified: `motor.rs`'s rated current, and no rated speed unless it gives one.
+        defmt::println!(
+            "# identified motor (a motor file; src/motor.rs takes the same values)\npole_pairs = {=u32}\nrs_ohm = {=f64}\nld_h = {=f64}\nlq_h = {=f64}\nflux_wb = {=f64}\nj_kg_m2 = {=f64}\nb_nm_s = {=f64}\nrated_current_a = {=f64}\n# rated_speed_rpm = {=f64} (0: not given in src/motor.rs)\n# distortion {=f64} V (resistance fit residual {=f64} V), load angle {=f64} rad",
+            m.pole_pairs,
+            m.rs_ohm,
+            m.ld_h,
+            m.lq_h,
+            m.flux_wb,
+            m.j_kg_m2,
+            m.b_nm_s,
+            m.rated_current_a.unwrap_or(0.0),
+            m.rated_speed_rpm.unwrap_or(0.0),
+            found.distortion_v,
+            found.resistance_residual_v,
+            found.load_angle_rad
+        );
+        let config = match DriveConfig::from_params(
+            &m,
+            &motor::inverter(),
+            motor::PWM_HZ as f64,
+            DriveOptions::default(),
+        ) {
+            Ok(c) => c,
+            Err(e) => {
+                defmt::warn!(
+                    "the identified motor does not make a drive ({}): the compiled-in one stays",
+                    e
+                );
+                return None;
+            }
+        };
+        let base = config.base;
+        let (Ok(current), Ok(voltage)) = (
+            board::CURRENT.scale(base.current_a),
+            board::VBUS.scale(base.voltage_v),
+        ) else {
+            defmt::warn!(
+                "the identified motor's bases are out of the ADC's range: the compiled-in one stays"
+            );
+            return None;
+        };
+        l.rpm_per_pu = (base.omega_e_rad_s / m.p() * 60.0 / core::f64::consts::TAU) as f32;
+        Some(Rebuilt {
+            config,
+            scaling: Scaling {
+                current,
+                voltage,
+                offsets: [2048; 3],
+            },
+        })
+    }
+
+    fn log_identify_error(e: IdentifyError) {
+        let why = match e {
+            IdentifyError::NoCurrent(_) => "no current (open phase or no motor)",
+            IdentifyError::RotorMoved(_) => "the rotor moved (or did not follow the field)",
+            IdentifyError::Saturation(_) => "the voltage saturated",
+            IdentifyError::Noise(_) => "inconsistent measurements (noise)",
+            IdentifyError::OverCurrent(_) => "overcurrent",
+            IdentifyError::BusLow(_) => "bus voltage too low",
+        };
+        defmt::warn!(
+            "identification failed at the {=str} step: {=str}; the compiled-in motor stays",
+            stage_name(e.stage()),
+            why
+        );
+    }
+
+    fn stage_name(s: Stage) -> &'static str {
+        match s {
+            Stage::Resistance => "resistance",
+            Stage::InductanceD => "d-axis inductance",
+            Stage::InductanceQ => "q-axis inductance",
+            Stage::Flux => "flux",
+            Stage::Inertia => "inertia",
+        }
+    }
+
     fn log(l: &mut Logger, r: &Report) {
         match r.event {
             Event::None => {}
+            // Without the mode these never come (the guards drop their code).
+            Event::CommissionStarted
+            | Event::CommissionRefused
+            | Event::CommissionAborted
+            | Event::CommissionEnded
+            | Event::DriveRebuilt
+                if !COMMISSIONING => {}
+            Event::CommissionStarted => defmt::info!(
+                "commissioning: identifying the motor ({=u32} pole pairs, limit {=f32} A); the button stops it",
+                motor::POLE_PAIRS,
+                board::COMMISSION_CURRENT_A as f32
+            ),
+            Event::CommissionRefused => {
+                defmt::warn!("commissioning: only from Idle, with the offsets measured")
+            }
+            Event::CommissionAborted => defmt::warn!("commissioning stopped: outputs off"),
+            Event::CommissionEnded => defmt::info!("commissioning: sequence ended, fitting"),
+            Event::DriveRebuilt => {
+                defmt::info!("drive rebuilt for the identified motor (until reset)")
+            }
             Event::Calibrated => defmt::info!("current offsets measured: ready"),
             Event::CalibrationFailed => {
                 defmt::error!("current offsets out of range: check the OPAMPs and the motor wiring")
@@ -415,6 +789,10 @@ mod app {
             Event::Break => defmt::warn!(
                 "break input: outputs off in hardware; stop (knob or button) to re-arm"
             ),
+        }
+        if COMMISSIONING && let Some(stage) = r.stage {
+            defmt::info!("commissioning: {=str} step", stage_name(stage));
+            return;
         }
         if l.last_state != Some(r.state) {
             l.last_state = Some(r.state);

@@ -77,11 +77,11 @@ pub struct Identify {
     pub(super) retries: u32,
     /// Slow mean of the spin's x voltage (`Pu` bits × 2¹²), for the hunting damper.
     pub(super) vx_mean: i64,
-    // Background results (f64, off the per-sample path).
-    pub(super) r_ohm: f64,
-    pub(super) v0_v: f64,
-    pub(super) r_rms_v: f64,
-    pub(super) inductance_h: [f64; 2],
+    // Background results (f32, off the per-sample path).
+    pub(super) r_ohm: f32,
+    pub(super) v0_v: f32,
+    pub(super) r_rms_v: f32,
+    pub(super) inductance_h: [f32; 2],
     pub(super) result: Option<Result<Identified, IdentifyError>>,
     pub(super) reported: bool,
 }
@@ -100,7 +100,9 @@ impl Identify {
             svpwm: SvpwmConfig::default(),
             phase: Phase::Align,
             k: 0,
-            ramp_step_bits: (level_bits[0] / config.n_ramp as i32).max(1),
+            // Unsigned, by a non-zero divisor: no division panic path (the levels are
+            // positive, validated).
+            ramp_step_bits: ((level_bits[0].max(0) as u32 / config.n_ramp.max(1)) as i32).max(1),
             level_bits,
             i_ref: 0,
             trip_bits: bits(d.trip_pu),

@@ -200,7 +200,7 @@ fn samples(key: &'static str, t_s: f64, ts: f64) -> Result<u32, ConfigError> {
 }
 
 /// Angle counts (2³² a turn) × 2¹⁶ per radian.
-const Q16_COUNTS_PER_RAD: f64 = 4_294_967_296.0 * 65_536.0 / core::f64::consts::TAU;
+pub(crate) const Q16_COUNTS_PER_RAD: f64 = 4_294_967_296.0 * 65_536.0 / core::f64::consts::TAU;
 
 impl IdentifyConfig {
     /// Identification of a motor with `pole_pairs` on `inverter` (control at its PWM rate),
@@ -294,16 +294,6 @@ impl IdentifyConfig {
     /// Electrical speed of a generator step, rad/s.
     pub(crate) fn omega_e(&self, speed_q16: u64) -> f64 {
         speed_q16 as f64 / Q16_COUNTS_PER_RAD / self.sample_s
-    }
-
-    /// Amperes per `Pu` bit.
-    pub(crate) fn amps(&self, bits: f64) -> f64 {
-        bits / 16_777_216.0 * self.current_base_a
-    }
-
-    /// Volts per `Pu` bit.
-    pub(crate) fn volts(&self, bits: f64) -> f64 {
-        bits / 16_777_216.0 * self.voltage_base_v
     }
 }
 

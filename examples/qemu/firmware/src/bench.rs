@@ -23,6 +23,7 @@ use pmsm_core::{
 };
 use pmsm_core::{DeadTimeConfig, DeadTimeDesign};
 use pmsm_core::{DriveInput, DriveOutput};
+use pmsm_core::{Identify, IdentifyConfig, IdentifyDesign, IdentifyOutput};
 use pmsm_core::{Ipd, IpdConfig, IpdDesign, IpdOutput};
 use pmsm_core::{Polar, polar};
 use pmsm_core::{SvpwmConfig, SvpwmOutput};
@@ -274,6 +275,131 @@ fn bench_ipd(meter: &Meter, rec: &CaseData<'static>, cfg: IpdConfig) -> Stats {
     )
 }
 
+/// Motor B (Khlaief, Boussak, Gossa (2012)) as the plant of the identification: the dq model
+/// (linear magnetics, `T_e = 1.5 p (ψ i_q + (L_d − L_q) i_d i_q)`, `J ω̇ = T_e − B ω`) in
+/// `f32`, one Euler step per sample, the rotor angle an [`Angle`] (the core's sine table: no
+/// `f32` trigonometry to link), the commanded voltage applied as is (an ideal inverter).
+/// Unmeasured; it only has to lead the identification through every stage as a motor would.
+struct IdPlant {
+    theta: Angle,
+    omega_e_rad_s: f32,
+    id_a: f32,
+    iq_a: f32,
+    /// Volts per unit of the identification's voltage, amperes per unit of its current.
+    vb_v: f32,
+    ib_a: f32,
+}
+
+/// Motor B's constants for [`IdPlant`]: `(R Ω, L_d H, L_q H, ψ Wb, J kg m², B N m s, p)`.
+const MOTOR_B: (f32, f32, f32, f32, f32, f32, f32) =
+    (7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011, 3.0);
+
+impl IdPlant {
+    /// One sample of `t_s` under the αβ voltage `v` (per unit); returns the αβ currents (per
+    /// unit) the ADC reads at the end of it.
+    fn step(&mut self, v: AlphaBeta, pwm_on: bool, t_s: f32) -> AlphaBeta {
+        let (r, ld, lq, psi, j, b, p) = MOTOR_B;
+        let q30 = (1u32 << 30) as f32;
+        let q24 = (1u32 << 24) as f32;
+        let sc = self.theta.sin_cos();
+        let (s, c) = (sc.sin.to_bits() as f32 / q30, sc.cos.to_bits() as f32 / q30);
+        if pwm_on {
+            let va = v.alpha.to_bits() as f32 / q24 * self.vb_v;
+            let vb = v.beta.to_bits() as f32 / q24 * self.vb_v;
+            let (vd, vq) = (c * va + s * vb, -s * va + c * vb);
+            let w = self.omega_e_rad_s;
+            let did = (vd - r * self.id_a + w * lq * self.iq_a) / ld;
+            let diq = (vq - r * self.iq_a - w * ld * self.id_a - w * psi) / lq;
+            self.id_a += did * t_s;
+            self.iq_a += diq * t_s;
+        } else {
+            // Outputs off: the currents die out through the diodes within a sample or two.
+            self.id_a = 0.0;
+            self.iq_a = 0.0;
+        }
+        let te = 1.5 * p * (psi * self.iq_a + (ld - lq) * self.id_a * self.iq_a);
+        let w_m = self.omega_e_rad_s / p;
+        self.omega_e_rad_s += (te - b * w_m) / j * t_s * p;
+        let turn = self.omega_e_rad_s * t_s * (4_294_967_296.0 / core::f32::consts::TAU);
+        self.theta = self.theta + Angle(turn as i64 as i32);
+        let (ia, ib) = (c * self.id_a - s * self.iq_a, s * self.id_a + c * self.iq_a);
+        AlphaBeta {
+            alpha: Pu::from_bits((ia / self.ib_a * q24) as i32),
+            beta: Pu::from_bits((ib / self.ib_a * q24) as i32),
+        }
+    }
+}
+
+/// How a benchmarked identification ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IdentifyEnd {
+    /// It identified the plant: the relative errors of `R, L_d, L_q, ψ, J` in per mille
+    /// (information only: the accuracy is the host tests' business).
+    Identified([i32; 5]),
+    /// It stopped with an error (the benchmark still covers the stages it ran).
+    Failed,
+    /// It did not finish within the sample limit.
+    Unfinished,
+}
+
+/// `Identify::step` (per sample) and `Identify::poll` (the background work; its maximum is
+/// the final fits) over a whole identification of motor B on 540 V at 14 kHz, current limit
+/// √2 × 2.53 A, against [`IdPlant`] (its rotor starting 40° electrical off the α axis).
+/// Returns the step's and the poll's figures, how it ended, and the samples it took.
+#[inline(never)]
+fn bench_identify(meter: &Meter, cfg: IdentifyConfig) -> (Stats, Stats, IdentifyEnd, u32) {
+    let t_s = cfg.sample_s as f32;
+    let mut plant = IdPlant {
+        theta: Angle(0x1C71_C71C),
+        omega_e_rad_s: 0.0,
+        id_a: 0.0,
+        iq_a: 0.0,
+        vb_v: cfg.voltage_base_v as f32,
+        ib_a: cfg.current_base_a as f32,
+    };
+    // The bus per unit of V_b = V_DC/√3.
+    let vdc = Pu::from_bits((1.732_050_8f32 * (1u32 << 24) as f32) as i32);
+    let mut id = Identify::new(cfg);
+    let (mut step, mut poll) = (Stats::default(), Stats::default());
+    let mut i = AlphaBeta::default();
+    // 20 s of samples: far beyond the sequence's few seconds.
+    let limit = (20.0 / t_s) as u32;
+    for k in 0..limit {
+        let mut out = None::<IdentifyOutput>;
+        let n = meter.insn(&mut || out = Some(id.step(black_box(i), black_box(vdc))));
+        step.calls += 1;
+        step.sum += u64::from(n);
+        step.max = step.max.max(n);
+        let mut res = None;
+        let n = meter.insn(&mut || res = id.poll());
+        poll.calls += 1;
+        poll.sum += u64::from(n);
+        poll.max = poll.max.max(n);
+        if let Some(r) = res {
+            let end = match r {
+                Ok(f) => {
+                    let m = f.motor;
+                    let (r, ld, lq, psi, j, _, _) = MOTOR_B;
+                    let e = |got: f64, truth: f32| ((got / truth as f64 - 1.0) * 1000.0) as i32;
+                    IdentifyEnd::Identified([
+                        e(m.rs_ohm, r),
+                        e(m.ld_h, ld),
+                        e(m.lq_h, lq),
+                        e(m.flux_wb, psi),
+                        e(m.j_kg_m2, j),
+                    ])
+                }
+                Err(_) => IdentifyEnd::Failed,
+            };
+            return (step, poll, end, k + 1);
+        }
+        if let Some(o) = out {
+            i = plant.step(o.v, o.pwm_on, t_s);
+        }
+    }
+    (step, poll, IdentifyEnd::Unfinished, limit)
+}
+
 /// Runs every benchmark and passes each figure to `report(name, stats)`. Configurations are
 /// built here, states in each [`bench`] (in its own frame: build a drive in `init`).
 #[inline(never)]
@@ -482,5 +608,26 @@ pub fn run_all(
             report("drive_step", &st);
         }
     }
+    Ok(())
+}
+
+/// The identification's benchmarks (the image of feature `identify`, which embeds no
+/// recording: the micro:bit's flash holds the recording or the identification, not both):
+/// self-commissioning of motor B from its pole pairs, the inverter and the rated peak
+/// current. Passes `identify_step` and `identify_poll` to `report`, then how it ended and the
+/// samples it took to `identified`.
+#[inline(never)]
+pub fn run_identify(
+    meter: &Meter,
+    report: &mut dyn FnMut(&str, &Stats),
+    identified: &mut dyn FnMut(IdentifyEnd, u32),
+) -> Result<(), ConfigError> {
+    let b = Setup::motor_b()?;
+    let limit_a = core::f64::consts::SQRT_2 * 2.53;
+    let cfg = IdentifyConfig::new(3, &b.inverter, limit_a, IdentifyDesign::default())?;
+    let (step, poll, end, samples) = bench_identify(meter, cfg);
+    report("identify_step", &step);
+    report("identify_poll", &poll);
+    identified(end, samples);
     Ok(())
 }

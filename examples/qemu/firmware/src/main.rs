@@ -66,6 +66,9 @@ fn run() -> bool {
         meter.ref_ticks,
         meter.ref_insn
     );
+    if cfg!(feature = "identify") {
+        return identify(&meter);
+    }
     memory_report();
 
     let setup = match Setup::motor_a() {
@@ -131,6 +134,32 @@ fn run() -> bool {
             false
         }
     }
+}
+
+/// The image of feature `identify`: the identification's benchmarks only (no recording, no
+/// replay). Succeeds if the identification identified its plant.
+fn identify(meter: &meter::Meter) -> bool {
+    let mut ok = false;
+    let run = bench::run_identify(
+        meter,
+        &mut |name, st| {
+            hprintln!(
+                "PIL {CPU} {name} insn_mean={} insn_max={}",
+                st.mean(),
+                st.max
+            );
+        },
+        &mut |end, samples| {
+            // Relative errors in per mille of R, L_d, L_q, ψ, J when it identified the plant.
+            hprintln!("# {CPU} identify: {end:?} after {samples} samples");
+            ok = matches!(end, bench::IdentifyEnd::Identified(_));
+        },
+    );
+    if run.is_err() {
+        hprintln!("# {CPU}: the identification's configuration failed ({NO_FLOAT_FMT})");
+        return false;
+    }
+    ok
 }
 
 /// Flash and RAM used by this image (from the linker symbols of cortex-m-rt).
