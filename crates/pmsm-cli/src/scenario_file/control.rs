@@ -57,7 +57,8 @@ pub struct Control {
     pub speed_bandwidth_hz: Option<f64>,
     /// MRAS-current adaptation bandwidth, Hz.
     pub mras_bandwidth_hz: Option<f64>,
-    /// Current limit, A peak (default: twice rated peak).
+    /// Current limit of the speed loop, A peak (default: the rated peak current, `√2 ·
+    /// rated_current_a`, the per-unit base `I_b`).
     pub current_limit_a: Option<f64>,
     /// The drive's model of the motor is off the plant's: its resistance times this.
     pub model_rs_factor: Option<f64>,
