@@ -2,44 +2,37 @@
 //! that turn the per-sample sums into parameters. Runs in [`super::Identify::poll`], never on
 //! the per-sample path.
 //!
+//! The least-squares fits are nalgebra's: fixed-size matrices (no allocation), each row
+//! folded into an upper-triangular factor by nalgebra's Givens rotations
+//! ([`GivensRotation`]), the triangle solved by its `solve_upper_triangular`. Rotations, not
+//! the normal equations, because those square the condition number, which single precision
+//! cannot afford; the columns are scaled to unit norm (and the line's abscissae centred) for
+//! the same reason.
+//!
 //! `f32`: a board's FPU computes it in hardware, where `f64` is emulated (about three times
-//! the code per operation; on the B-G431B-ESC1's 64 KiB the difference decides whether the
-//! commissioning mode fits). The sums are integers (exact); the fits below are centred or
-//! column-scaled so that single precision loses nothing against the measurements' own
-//! resolution (the tests bound every fit against its exact `f64` answer).
+//! the code per operation; in the B-G431B-ESC1's flash the difference decides whether the
+//! commissioning mode fits). The sums are integers (exact); with the conditioning above,
+//! single precision loses nothing against the measurements' own resolution (the tests bound
+//! every fit against its exact `f64` answer).
+
+use nalgebra::{RowSVector, SMatrix, Vector2, linalg::givens::GivensRotation};
 
 use crate::num::pu_from_f64;
 
 /// Least squares `y ≈ a x + b` over the points; `None` with fewer than two distinct `x`.
 /// Returns `(a, b, rms residual)`.
 pub fn line(points: &[(f32, f32)]) -> Option<(f32, f32, f32)> {
-    let n = points.len() as f32;
     if points.len() < 2 {
         return None;
     }
-    // Centred: no cancellation between the sums of a closed form.
-    let (mut mx, mut my) = (0.0f32, 0.0f32);
-    for &(x, y) in points {
-        mx += x;
-        my += y;
-    }
-    let (mx, my) = (mx / n, my / n);
-    let (mut sxx, mut sxy) = (0.0f32, 0.0f32);
-    for &(x, y) in points {
-        sxx += (x - mx) * (x - mx);
-        sxy += (x - mx) * (y - my);
-    }
-    if sxx.is_nan() || sxx <= 0.0 {
-        return None;
-    }
-    let k = sxy / sxx;
-    let b = my - k * mx;
-    let mut ss = 0.0f32;
-    for &(x, y) in points {
-        let e = y - (k * x + b);
-        ss += e * e;
-    }
-    let rms = sqrt(ss / n);
+    let n = points.len() as f32;
+    // Centred abscissae: the columns `x − x̄` and `1` are orthogonal, where `x` and `1`
+    // would be nearly parallel for points far from the origin.
+    let mx = points.iter().map(|p| p.0).sum::<f32>() / n;
+    let ([k, c], residual) =
+        least_squares::<2, 3, _>(points.iter().map(|&(x, y)| ([x - mx, 1.0], y)))?;
+    let b = c - k * mx;
+    let rms = sqrt(residual * residual / n);
     (k.is_finite() && b.is_finite()).then_some((k, b, rms))
 }
 
@@ -49,53 +42,71 @@ fn sqrt(x: f32) -> f32 {
 }
 
 /// Least squares `a·x ≈ y` for three unknowns over the rows `(a, y)`, columns scaled to unit
-/// norm first (the unknowns differ by orders of magnitude), solved by Givens rotations (the
-/// normal equations would square the condition number, too much for `f32`). `None` if the
-/// scaled columns are (nearly) dependent.
+/// norm first (the unknowns differ by orders of magnitude). `None` if the scaled columns are
+/// (nearly) dependent.
 pub fn least_squares_3(rows: &[([f32; 3], f32)]) -> Option<[f32; 3]> {
-    let mut norm = [0.0f32; 3];
-    for (a, _) in rows {
+    least_squares::<3, 4, _>(rows.iter().copied()).map(|(x, _)| x)
+}
+
+/// Least squares for `N` unknowns (`M = N + 1`, the augmented width) over the rows
+/// `(a, y)`: the columns of `a` scaled to unit norm, each row `[a | y]` rotated into the
+/// augmented triangle `[R | Qᵀy]` (one Givens rotation per entry), then `R x = Qᵀy` solved.
+/// The triangle's last diagonal entry collects what no combination of the columns explains:
+/// its magnitude is the residual norm `‖y − a x‖`, returned with `x`. `None` if the scaled
+/// columns are (nearly) dependent or the rows not finite.
+fn least_squares<const N: usize, const M: usize, I>(rows: I) -> Option<([f32; N], f32)>
+where
+    I: Iterator<Item = ([f32; N], f32)> + Clone,
+{
+    const { assert!(M == N + 1) };
+    let mut norm = [0.0f32; N];
+    for (a, _) in rows.clone() {
         for (n, x) in norm.iter_mut().zip(a) {
             *n += x * x;
         }
     }
     let norm = norm.map(|n| if n > 0.0 { sqrt(n) } else { 1.0 });
-    // R (upper triangular, row-major: r00 r01 r02 r11 r12 r22) and Qᵀy.
-    let [mut r00, mut r01, mut r02, mut r11, mut r12, mut r22] = [0.0f32; 6];
-    let mut z = [0.0f32; 3];
+    // The augmented triangle, row by row.
+    let mut t = [RowSVector::<f32, M>::zeros(); M];
     for (a, y) in rows {
-        let [a0, mut a1, mut a2] = [a[0] / norm[0], a[1] / norm[1], a[2] / norm[2]];
-        let mut y = *y;
-        // Each rotation zeroes one entry of the new row against R's diagonal.
-        let (c, s) = givens(r00, a0);
-        r00 = c * r00 + s * a0;
-        (r01, a1) = (c * r01 + s * a1, c * a1 - s * r01);
-        (r02, a2) = (c * r02 + s * a2, c * a2 - s * r02);
-        (z[0], y) = (c * z[0] + s * y, c * y - s * z[0]);
-        let (c, s) = givens(r11, a1);
-        r11 = c * r11 + s * a1;
-        (r12, a2) = (c * r12 + s * a2, c * a2 - s * r12);
-        (z[1], y) = (c * z[1] + s * y, c * y - s * z[1]);
-        let (c, s) = givens(r22, a2);
-        r22 = c * r22 + s * a2;
-        z[2] = c * z[2] + s * y;
+        let mut row = [y; M];
+        for ((r, x), n) in row.iter_mut().zip(a).zip(norm) {
+            *r = x / n;
+        }
+        let mut row = RowSVector::<f32, M>::from_row_slice(&row);
+        for (k, tk) in t.iter_mut().enumerate() {
+            // Zero the new row's entry k against the diagonal entry of row k (both rows are
+            // zero left of k). Checked access: no bounds panic in the firmware.
+            let (Some(&p), Some(&q)) = (tk.get(k), row.get(k)) else {
+                break;
+            };
+            let Some((rot, d)) = GivensRotation::cancel_y(&Vector2::new(p, q)) else {
+                continue;
+            };
+            let mut pair = SMatrix::<f32, 2, M>::from_rows(&[*tk, row]);
+            rot.rotate(&mut pair);
+            (*tk, row) = (pair.row(0).into_owned(), pair.row(1).into_owned());
+            // The exact values, not the rotation's rounding: the diagonal entry is the norm
+            // `cancel_y` computed, and the zeros left of the diagonal stay zeros.
+            if let (Some(p), Some(q)) = (tk.get_mut(k), row.get_mut(k)) {
+                (*p, *q) = (d, 0.0);
+            }
+        }
     }
+    let t = SMatrix::<f32, M, M>::from_rows(&t);
     // Unit columns: |R_ii| is the distance of column i from the span of the ones before it.
-    let tiny = 1e-4;
-    if !(r00.abs() > tiny && r11.abs() > tiny && r22.abs() > tiny) {
+    let diagonal = t.diagonal();
+    if !diagonal.iter().take(N).all(|d| d.abs() > 1e-4) {
         return None;
     }
-    let x2 = z[2] / r22;
-    let x1 = (z[1] - r12 * x2) / r11;
-    let x0 = (z[0] - r01 * x1 - r02 * x2) / r00;
-    let out = [x0 / norm[0], x1 / norm[1], x2 / norm[2]];
-    out.iter().all(|v| v.is_finite()).then_some(out)
-}
-
-/// The rotation `(c, s)` that turns `(p, q)` into `(√(p² + q²), 0)`.
-fn givens(p: f32, q: f32) -> (f32, f32) {
-    let h = sqrt(p * p + q * q);
-    if h > 0.0 { (p / h, q / h) } else { (1.0, 0.0) }
+    let r = t.fixed_view::<N, N>(0, 0);
+    let x = r.solve_upper_triangular(&t.fixed_view::<N, 1>(0, N))?;
+    let mut out: [f32; N] = x.into();
+    for (o, n) in out.iter_mut().zip(norm) {
+        *o /= n;
+    }
+    let residual = diagonal.iter().next_back().map_or(0.0, |d| d.abs());
+    (out.iter().all(|v| v.is_finite()) && residual.is_finite()).then_some((out, residual))
 }
 
 /// Inductance from the peak-to-peak `d_a` (A) of the current under a square wave of
@@ -140,9 +151,36 @@ mod tests {
     fn line_recovers_slope_and_intercept() {
         let pts: [(f32, f32); 4] = [(1.0, 3.1), (2.0, 5.1), (3.0, 7.1), (4.0, 9.1)];
         let (a, b, rms) = line(&pts).unwrap();
-        assert!((a - 2.0).abs() < 1e-6 && (b - 1.1).abs() < 1e-6 && rms < 1e-6);
+        assert!(
+            (a - 2.0).abs() < 1e-6 && (b - 1.1).abs() < 1e-6 && rms < 1e-6,
+            "{a} {b} {rms}"
+        );
         assert!(line(&pts[..1]).is_none());
         assert!(line(&[(1.0, 1.0), (1.0, 2.0)]).is_none());
+    }
+
+    /// Inconsistent points far from the origin (the resistance levels' shape: amperes
+    /// against volts with an offset): slope, intercept and the rms residual, which comes from
+    /// the triangle's last diagonal entry, against the f64 closed form.
+    #[test]
+    fn line_matches_f64_with_residuals() {
+        let pts: [(f64, f64); 4] = [(12.5, 10.31), (14.0, 11.52), (15.5, 12.69), (17.0, 13.93)];
+        let n = pts.len() as f64;
+        let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+        let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+        let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+        let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+        let (a, b) = (sxy / sxx, my - sxy / sxx * mx);
+        let rms = libm::sqrt(
+            pts.iter()
+                .map(|p| (p.1 - a * p.0 - b) * (p.1 - a * p.0 - b))
+                .sum::<f64>()
+                / n,
+        );
+        let (ga, gb, grms) = line(&pts.map(|(x, y)| (x as f32, y as f32))).unwrap();
+        assert!((ga as f64 / a - 1.0).abs() < 1e-5, "{ga} vs {a}");
+        assert!((gb as f64 - b).abs() < 1e-5 * my, "{gb} vs {b}");
+        assert!((grms as f64 / rms - 1.0).abs() < 1e-3, "{grms} vs {rms}");
     }
 
     /// The f64 reference: the normal equations solved by Cramer's rule in double precision.
