@@ -21,7 +21,7 @@ pub use flux::{
     FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,
 };
 pub use pi::{Pi, PiConfig, PiOutput};
-pub use speed::{SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};
+pub use speed::{SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};
 
 use crate::error::ConfigError;
 use crate::num::{Pu, sat_i32, wmul};

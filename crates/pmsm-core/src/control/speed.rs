@@ -84,7 +84,7 @@ pub const DEFAULT_BANDWIDTH_TS: f64 = 0.005;
 /// Default [`SpeedDesign::decimation`]: the speed loop on the drive's even samples, the
 /// d-axis reference's updates on the odd ones (7 kHz at 14 kHz, 100 times the default
 /// bandwidth `ω_n = 0.005/T_s`; docs/drive.md, "outer loops").
-pub const DEFAULT_DECIMATION: u32 = 2;
+pub const SPEED_LOOP_DECIMATION: u32 = 2;
 
 /// How the speed controller is designed; [`SpeedDesign::default_for`] gives the defaults.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -105,13 +105,13 @@ pub struct SpeedDesign {
 
 impl SpeedDesign {
     /// `ω_n = 0.005/T_s`, `ζ = 1`, `I_max = I_b` (rated peak), once every
-    /// [`DEFAULT_DECIMATION`] samples.
+    /// [`SPEED_LOOP_DECIMATION`] samples.
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
             bandwidth_rad_s: DEFAULT_BANDWIDTH_TS / base.sample_s,
             damping: 1.0,
             current_limit_a: base.current_a,
-            decimation: DEFAULT_DECIMATION,
+            decimation: SPEED_LOOP_DECIMATION,
             gains: None,
         }
     }
