@@ -14,13 +14,16 @@
 //!   (of either device) is delayed by `T_eff = T_dead + T_on − T_off` (the common delay
 //!   `T_off` of all edges is neglected), and while both devices are off a diode conducts:
 //!   the lower one (`−V_f`) for `i_x > 0`, the upper one (`V_DC + V_f`) for `i_x < 0`. A
-//!   conducting switch drops `V_sat`, a conducting diode `V_f`. The sign is the hard sign of
-//!   the instantaneous current, ripple included, with no band: when a leg's current reaches
-//!   zero within its dead time both diodes block and the phase floats, its leg voltage the
-//!   one that holds its current at zero, until a switch turns on again (or that voltage would
-//!   leave the rails). The smooth fading of the dead-time error at small mean currents,
-//!   which the averaged model assumes through its band, thus comes out of the ripple. A duty
-//!   of exactly 0 or 1 does not switch.
+//!   conducting switch drops `V_sat`, a conducting diode `V_f`. With `sign_band_a = 0` the
+//!   sign is the hard sign of the instantaneous current, ripple included: when a leg's
+//!   current reaches zero within its dead time both diodes block and the phase floats, its
+//!   leg voltage the one that holds its current at zero, until a switch turns on again (or
+//!   that voltage would leave the rails). The fading of the dead-time error at mean currents
+//!   within the ripple then comes out of the physics, and so does the zero-current clamp:
+//!   from zero current, legs whose edges lie closer than the dead time drive no current at
+//!   all (a dead zone of `±2 T_eff/T` in duty difference). With a band (the default,
+//!   [`DEFAULT_SIGN_BAND`]) the sign is the smooth sign of the current at the start of each
+//!   interval between edges, which has neither. A duty of exactly 0 or 1 does not switch.
 //!
 //! Motor phase voltages are taken relative to the isolated neutral; the amplitude-invariant
 //! Clarke transform ([`crate::clarke`]) discards the common mode, so the leg voltages are
@@ -64,10 +67,12 @@ pub struct InverterModel {
     pub t_on_s: f64,
     /// Switch turn-off delay `T_off`, s.
     pub t_off_s: f64,
-    /// Width `i_ε` of the averaged model's smooth current sign `clamp(i/i_ε, −1, 1)`, A.
-    /// Zero: the hard sign, taken once per PWM period at its start, so that a current at zero
+    /// Width `i_ε` of the smooth current sign `clamp(i/i_ε, −1, 1)`, A. Zero: the hard sign.
+    /// The averaged model takes it once per PWM period at its start, so that a current at zero
     /// does not flip the dead-time voltage between the Runge–Kutta stages of one step. The
-    /// switching model ignores it (hard sign of the instantaneous current).
+    /// switching model takes it from the instantaneous current, ripple included, and lets a
+    /// dead leg whose current reaches zero float (the module documentation); with a band it
+    /// takes the smooth sign at the start of each interval between edges instead.
     pub sign_band_a: f64,
     /// Averaged or switching-level model.
     pub kind: InverterKind,
@@ -477,10 +482,11 @@ impl Inverter {
     }
 
     /// Integrates one period edge by edge: between consecutive edges every leg's conduction is
-    /// fixed. A conducting switch or diode pair follows the hard sign of the instantaneous
-    /// current at the start of the interval (it only selects `V_sat` or `V_f`); a leg in its
-    /// dead time is integrated event by event ([`Inverter::dead_interval`]). Returns the period
-    /// average of each leg's voltage, V.
+    /// fixed. With the hard sign (`sign_band_a = 0`) a conducting switch or diode pair follows
+    /// the sign of the instantaneous current at the start of the interval (it only selects
+    /// `V_sat` or `V_f`), and a leg in its dead time is integrated event by event
+    /// ([`Inverter::dead_interval`]); with a band, every leg takes the smooth sign at the start
+    /// of the interval. Returns the period average of each leg's voltage, V.
     fn switching_period(
         &self,
         motor: &mut Motor,
@@ -532,12 +538,23 @@ impl Inverter {
             for k in 0..3 {
                 diode[k] = match (c[k], diode[k]) {
                     (Conduction::Dead, Some(s)) => Some(s),
-                    (Conduction::Dead, None) => Some(entry_sign(i[k])),
+                    (Conduction::Dead, None) => Some(entry_sign(i[k], plans[k].command(mid).0)),
                     _ => None,
                 };
             }
-            if diode.iter().all(Option::is_none) {
-                let v = [0, 1, 2].map(|k| self.model.leg_voltage_v(c[k], vdc_v, hard_sign(i[k])));
+            let band = self.model.sign_band_a > 0.0;
+            if band || diode.iter().all(Option::is_none) {
+                // With a band every leg takes the smooth sign of its current at the start of
+                // the interval (a dead leg's diode then conducts part way for a current
+                // within the band).
+                let sign = |x: f64| {
+                    if band {
+                        self.model.smooth_sign(x)
+                    } else {
+                        hard_sign(x)
+                    }
+                };
+                let v = [0, 1, 2].map(|k| self.model.leg_voltage_v(c[k], vdc_v, sign(i[k])));
                 let v_ab = clarke(v);
                 motor.step(v_ab[0], v_ab[1], load_nm, dt)?;
                 for k in 0..3 {
@@ -643,15 +660,21 @@ const MAX_DEAD_EVENTS: usize = 8;
 /// Relative current left at a predicted zero crossing that still counts as zero.
 const ZERO_TOLERANCE: f64 = 1e-3;
 
-/// Current below which a leg entering its dead time has both diodes blocked, A.
+/// Current below which a leg entering its dead time counts as carrying none, A.
 const ZERO_CURRENT_A: f64 = 1e-9;
 
-/// The diode state of a leg entering its dead time with current `i_a`.
-fn entry_sign(i_a: f64) -> f64 {
-    if libm::fabs(i_a) <= ZERO_CURRENT_A {
-        0.0
-    } else {
+/// The diode state of a leg entering its dead time with current `i_a`, its command now
+/// `high`. Without current nothing moves the output node (its capacitance holds it): the leg
+/// stays at the rail it was switched to, as the diode of that rail would hold it; if the
+/// other legs then drive the current the other way, the event loop lets it float.
+fn entry_sign(i_a: f64, high: bool) -> f64 {
+    if libm::fabs(i_a) > ZERO_CURRENT_A {
         hard_sign(i_a)
+    } else if high {
+        // Was low: the lower rail, as the lower diode (i > 0) holds it.
+        1.0
+    } else {
+        -1.0
     }
 }
 
