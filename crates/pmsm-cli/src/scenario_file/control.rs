@@ -34,6 +34,11 @@ pub enum Startup {
     Known,
 }
 
+/// Default `[control] pwm_update_delay_periods`: one period, pmsm-stm32's TIM1 (compare
+/// preload transferred at the update event of the counter's peak, where the ADC samples;
+/// docs/drive.md, PWM update delay).
+pub const DEFAULT_PWM_UPDATE_DELAY_PERIODS: u32 = 1;
+
 /// `[control]` of a scenario.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -72,6 +77,14 @@ pub struct Control {
     /// The dead time the drive's compensation is designed for, s (default: the inverter's
     /// `dead_time_s`; the plant keeps the inverter's).
     pub dead_time_s: Option<f64>,
+    /// PWM periods between a control step and the period its duties act over in the plant
+    /// (the compare preload): default [`DEFAULT_PWM_UPDATE_DELAY_PERIODS`], pmsm-stm32's
+    /// TIM1; 0 applies them over the coming period. Outputs on and off act at once.
+    pub pwm_update_delay_periods: Option<u32>,
+    /// The delay the drive compensates, PWM periods, a whole number of control samples
+    /// (`pmsm_core::DriveDesign::pwm_delay_samples`; default: `pwm_update_delay_periods`;
+    /// the plant keeps its own).
+    pub pwm_delay_compensation_periods: Option<u32>,
     /// Motor file the drive is designed from (`scenario_extras`); the plant keeps `motor`.
     pub model_motor: Option<String>,
     /// Maximum torque per ampere for interior motors (default false: `i_d = 0`).
@@ -95,6 +108,9 @@ impl Control {
         }
         if let Some(t) = self.dead_time_s {
             in_range("control.dead_time_s", t, 0.0, 1e-3)?;
+        }
+        if let Some(n) = self.pwm_update_delay_periods {
+            in_range("control.pwm_update_delay_periods", n as f64, 0.0, 16.0)?;
         }
         for (key, v) in [
             ("control.observer_gain", self.observer_gain),

@@ -174,7 +174,17 @@ pub struct DriveDesign {
     pub protection: Protection,
     /// The d-axis reference: MTPA and field weakening (docs/field-weakening.md).
     pub flux: FluxDesign,
+    /// Control samples between a step's return and the period its duties act over: 0 when
+    /// they act over the coming period (a loop that applies them at once), 1 on pmsm-stm32's
+    /// TIM1, whose compare preload loads them one period later (docs/drive.md, PWM update
+    /// delay). The drive advances the voltage's angle by `ω̂ T_s` per sample of delay and
+    /// gives the estimator the voltage that acted over the period that just ended. At most
+    /// [`MAX_PWM_DELAY_SAMPLES`]; default 0.
+    pub pwm_delay_samples: u8,
 }
+
+/// Longest PWM update delay the drive compensates, control samples.
+pub const MAX_PWM_DELAY_SAMPLES: u8 = 2;
 
 impl DriveDesign {
     /// Defaults for `motor` on `inverter` with the bases `base`, running `estimator`.
@@ -207,6 +217,7 @@ impl DriveDesign {
             open_loop: OpenLoopDesign::default_for(motor, base),
             protection: Protection::default_for(inverter, base),
             flux: FluxDesign::default(),
+            pwm_delay_samples: 0,
         }
     }
 }
@@ -223,6 +234,8 @@ pub struct DriveOptions {
     pub startup: Option<StartupMode>,
     /// Dead-time compensation; `None`: the default of [`DeadTimeDesign::default_for`].
     pub deadtime: Option<DeadTimeMode>,
+    /// [`DriveDesign::pwm_delay_samples`]; `None`: 0.
+    pub pwm_delay_samples: Option<u8>,
 }
 
 impl Default for DriveOptions {
@@ -231,6 +244,7 @@ impl Default for DriveOptions {
             estimator: EstimatorKind::MrasCurrent,
             startup: None,
             deadtime: None,
+            pwm_delay_samples: None,
         }
     }
 }
@@ -255,6 +269,8 @@ pub struct DriveConfig {
     pub(crate) protection: ProtectionConfig,
     pub(crate) monitor: super::monitor::MonitorConfig,
     pub(crate) flux: FluxConfig,
+    /// [`DriveDesign::pwm_delay_samples`].
+    pub(crate) pwm_delay: u8,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -294,6 +310,9 @@ impl DriveConfig {
         }
         if let Some(mode) = options.deadtime {
             design.deadtime.mode = mode;
+        }
+        if let Some(d) = options.pwm_delay_samples {
+            design.pwm_delay_samples = d;
         }
         Self::new(motor, inverter, sample_hz, design)
     }
@@ -359,6 +378,12 @@ impl DriveConfig {
         in_range("open_loop.align_time_s", ol.align_time_s, 0.0, 100.0)?;
         let p = design.protection;
         positive("protection.overcurrent_a", p.overcurrent_a)?;
+        in_range(
+            "pwm_delay_samples",
+            design.pwm_delay_samples as f64,
+            0.0,
+            MAX_PWM_DELAY_SAMPLES as f64,
+        )?;
         positive("protection.vdc_min_v", p.vdc_min_v)?;
         in_range("protection.vdc_max_v", p.vdc_max_v, p.vdc_min_v, 1e4)?;
         Ok(Self {
@@ -424,6 +449,7 @@ impl DriveConfig {
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
             flux,
+            pwm_delay: design.pwm_delay_samples,
             base,
             design,
         })

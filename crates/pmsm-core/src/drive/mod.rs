@@ -25,7 +25,7 @@ mod startup;
 
 pub use config::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveConfig, DriveDesign, DriveOptions,
-    OVERSPEED_FACTOR, OpenLoopDesign, Protection, StartupMode,
+    MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, OpenLoopDesign, Protection, StartupMode,
 };
 pub use interface::{DriveInput, DriveOutput, DriveState, Fault, SpeedRefLimit, Telemetry};
 
@@ -56,6 +56,8 @@ pub struct Drive {
     speed_filtered: Pu,
     /// Voltage applied over the current period, as the estimator should see it.
     v_est: AlphaBeta,
+    /// Voltages modulated but not yet applied (the PWM update delay), newest first.
+    v_line: [AlphaBeta; MAX_PWM_DELAY_SAMPLES as usize],
     telemetry: Telemetry,
     ipd_result: Option<IpdResult>,
     monitor: monitor::Monitor,
@@ -86,6 +88,7 @@ impl Drive {
             speed_ref: Pu::ZERO,
             speed_filtered: Pu::ZERO,
             v_est: AlphaBeta::default(),
+            v_line: Default::default(),
             telemetry: Telemetry::default(),
             ipd_result: None,
             monitor: monitor::Monitor::default(),
@@ -150,6 +153,7 @@ impl Drive {
         self.current.reset();
         self.monitor.reset();
         self.v_est = AlphaBeta::default();
+        self.v_line = Default::default();
         self.state = match self.config.design.startup {
             StartupMode::Ipd => {
                 self.ipd.restart();
@@ -293,7 +297,7 @@ impl Drive {
     #[inline(always)]
     fn ipd_step(&mut self, i: AlphaBeta, vdc: Pu) -> DriveOutput {
         let out = self.ipd.step(i, vdc);
-        self.v_est = out.v;
+        self.v_est = self.delayed(out.v);
         self.telemetry.v = out.v;
         match out.done {
             None => DriveOutput {
@@ -435,12 +439,16 @@ impl Drive {
         // With the estimator's two frames, their mean points there exactly, at a length
         // cos(ω T_s/2) (0.9993 at 1 pu on motor B): a gain the current loops take up, while the
         // estimator sees the voltage actually modulated.
+        // With a PWM update delay of d samples it acts d periods later: the angle advances by
+        // d ω T_s, along the frame's own step (sc_next − sc, a rotation by ω T_s to first
+        // order: the length grows by 3/8 (ω T_s)², 5e-4 at 1 pu on motor B).
+        let d = self.config.pwm_delay;
         let sc_mid = match frame {
-            Some(f) => midpoint(f.sc, f.sc_next),
+            Some(f) => advance(midpoint(f.sc, f.sc_next), f.sc, f.sc_next, d),
             None => {
                 let turn = self.config.open_loop.turn_per_speed;
-                let half = Angle(turn.apply_bits(omega.to_bits()) / 2);
-                (theta + half).sin_cos()
+                let step = turn.apply_bits(omega.to_bits());
+                (theta + Angle(step / 2 + step.wrapping_mul(d as i32))).sin_cos()
             }
         };
         let v_ref = inverse_park(out.v, sc_mid);
@@ -450,7 +458,8 @@ impl Drive {
         let m = c
             .svpwm
             .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
-        self.v_est = c.deadtime.estimator_voltage(m.v, v_dt);
+        let v_applied = c.deadtime.estimator_voltage(m.v, v_dt);
+        self.v_est = self.delayed(v_applied);
         self.telemetry.theta = theta;
         self.telemetry.i_dq = i_dq;
         self.telemetry.i_ref = i_ref;
@@ -459,6 +468,23 @@ impl Drive {
         DriveOutput {
             duties: m.duties,
             pwm_on: true,
+        }
+    }
+
+    /// The voltage the estimator sees at the next sample, given the one modulated now: that
+    /// of `pwm_delay` samples ago, which is the one that will have acted over the coming
+    /// period.
+    #[inline(always)]
+    fn delayed(&mut self, v: AlphaBeta) -> AlphaBeta {
+        match self.config.pwm_delay {
+            0 => v,
+            1 => core::mem::replace(&mut self.v_line[0], v),
+            _ => {
+                let out = self.v_line[1];
+                self.v_line[1] = self.v_line[0];
+                self.v_line[0] = v;
+                out
+            }
         }
     }
 
@@ -544,6 +570,24 @@ fn midpoint(a: SinCos, b: SinCos) -> SinCos {
     SinCos {
         sin: avg(a.sin, b.sin),
         cos: avg(a.cos, b.cos),
+    }
+}
+
+/// `mid + d (next − now)` componentwise, saturated: the mid-period vector moved on by `d`
+/// steps of the frame.
+#[inline(always)]
+fn advance(mid: SinCos, now: SinCos, next: SinCos, d: u8) -> SinCos {
+    if d == 0 {
+        return mid;
+    }
+    let d = d as i32;
+    let step = |m: Unit, a: Unit, b: Unit| {
+        let delta = b.to_bits().wrapping_sub(a.to_bits()).wrapping_mul(d);
+        Unit::from_bits(m.to_bits().saturating_add(delta))
+    };
+    SinCos {
+        sin: step(mid.sin, now.sin, next.sin),
+        cos: step(mid.cos, now.cos, next.cos),
     }
 }
 
