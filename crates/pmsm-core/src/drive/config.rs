@@ -271,6 +271,11 @@ pub struct DriveConfig {
     pub(crate) flux: FluxConfig,
     /// [`DriveDesign::pwm_delay_samples`].
     pub(crate) pwm_delay: u8,
+    /// Half sample steps from a sample's angle to the middle of the period its voltage acts
+    /// in: `2 pwm_delay + 1`.
+    pub(crate) mid_turns: i32,
+    /// `mid_turns − 2`, for the estimator's frames (`drive::mid_frame`).
+    pub(crate) mid_frame_k: i32,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -450,6 +455,8 @@ impl DriveConfig {
             },
             flux,
             pwm_delay: design.pwm_delay_samples,
+            mid_turns: 2 * design.pwm_delay_samples as i32 + 1,
+            mid_frame_k: 2 * design.pwm_delay_samples as i32 - 1,
             base,
             design,
         })
