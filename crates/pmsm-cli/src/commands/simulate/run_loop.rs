@@ -291,3 +291,33 @@ fn advance_plant(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::CompareRegisters;
+
+    #[test]
+    fn compare_registers_load_the_duties_delay_periods_later() {
+        let (a, b, c) = ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 0.9]);
+        // Without delay a write acts in its own period.
+        let mut r = CompareRegisters::new(0);
+        assert_eq!(r.period(Some(a)), a);
+        assert_eq!(r.period(None), a);
+        assert_eq!(r.period(Some(b)), b);
+        // One period: the timer's initial half duties first, then each write a period late;
+        // a period without a write keeps the active values.
+        let mut r = CompareRegisters::new(1);
+        assert_eq!(r.period(Some(a)), [0.5; 3]);
+        assert_eq!(r.period(Some(b)), a);
+        assert_eq!(r.period(None), b);
+        assert_eq!(r.period(Some(c)), b);
+        assert_eq!(r.period(None), c);
+        // Two periods.
+        let mut r = CompareRegisters::new(2);
+        assert_eq!(r.period(Some(a)), [0.5; 3]);
+        assert_eq!(r.period(Some(b)), [0.5; 3]);
+        assert_eq!(r.period(Some(c)), a);
+        assert_eq!(r.period(None), b);
+        assert_eq!(r.period(None), c);
+    }
+}
