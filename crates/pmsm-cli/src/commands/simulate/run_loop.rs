@@ -296,6 +296,8 @@ fn advance_plant(
 mod tests {
     use super::CompareRegisters;
 
+    // The registers copy duties, never compute them: exact comparison is the point.
+    #[allow(clippy::float_cmp)]
     #[test]
     fn compare_registers_load_the_duties_delay_periods_later() {
         let (a, b, c) = ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 0.9]);
