@@ -51,7 +51,13 @@ fn main() -> Result<()> {
             print!("{}", drive_motor_b::robustness_section()?);
             Ok(())
         }
-        _ => bail!("usage: cargo xtask perf | figures | examples | robustness | sweep [N] | map"),
+        "plant-speed" => {
+            print!("{}", plant_speed::section()?);
+            Ok(())
+        }
+        _ => bail!(
+            "usage: cargo xtask perf | figures | examples | robustness | plant-speed | sweep [N] | map"
+        ),
     }
 }
 

@@ -34,8 +34,9 @@ fn motor_only(path: &Path) -> Result<Case> {
     })
 }
 
-/// Motor B on its inverter (540 V, 14 kHz, 2 µs), SVPWM-like sinusoidal duties.
-fn with_inverter(path: &Path, kind: InverterKind) -> Result<Case> {
+/// Motor B on its inverter (540 V, 14 kHz, 2 µs), SVPWM-like sinusoidal duties; `hard`: the
+/// hard current sign (`sign_band_a = 0`, the switching model's floating phases).
+fn with_inverter(path: &Path, kind: InverterKind, hard: bool) -> Result<Case> {
     let m = motor_file::read(path)?;
     let motor = Motor::new(m.model, 0.0, 0.0).map_err(|e| anyhow!("{e}"))?;
     let inv = InverterParams {
@@ -44,12 +45,12 @@ fn with_inverter(path: &Path, kind: InverterKind) -> Result<Case> {
         dead_time_s: 2e-6,
         current_full_scale_a: 10.0,
     };
-    let mut plant = Plant::new(
-        motor,
-        InverterModel::new(inv, kind),
-        AdcParams::from_inverter(&inv),
-    )
-    .map_err(|e| anyhow!("{e}"))?;
+    let mut model = InverterModel::new(inv, kind);
+    if hard {
+        model.sign_band_a = 0.0;
+    }
+    let mut plant =
+        Plant::new(motor, model, AdcParams::from_inverter(&inv)).map_err(|e| anyhow!("{e}"))?;
     let n = 7_000;
     let start = Instant::now();
     for k in 0..n {
@@ -59,7 +60,11 @@ fn with_inverter(path: &Path, kind: InverterKind) -> Result<Case> {
         plant.step_pwm(d, 0.0).map_err(|e| anyhow!("{e}"))?;
     }
     Ok(Case {
-        name: format!("{}: plant with {kind:?} inverter at 14 kHz", m.name),
+        name: format!(
+            "{}: plant with {kind:?} inverter at 14 kHz{}",
+            m.name,
+            if hard { ", hard sign" } else { "" }
+        ),
         simulated_s: plant.time_s(),
         wall_s: start.elapsed().as_secs_f64(),
         substep_us: plant.motor().max_substep_s() * 1e6,
@@ -72,8 +77,9 @@ pub fn section() -> Result<String> {
     let cases = [
         motor_only(&ex.join("motor-a.toml"))?,
         motor_only(&ex.join("motor-b.toml"))?,
-        with_inverter(&ex.join("motor-b.toml"), InverterKind::Averaged)?,
-        with_inverter(&ex.join("motor-b.toml"), InverterKind::Switching)?,
+        with_inverter(&ex.join("motor-b.toml"), InverterKind::Averaged, false)?,
+        with_inverter(&ex.join("motor-b.toml"), InverterKind::Switching, false)?,
+        with_inverter(&ex.join("motor-b.toml"), InverterKind::Switching, true)?,
     ];
     let mut s = String::from(
         "## Speed of the plant model\n\n\

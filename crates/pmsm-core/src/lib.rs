@@ -111,7 +111,7 @@ pub use control::{
 };
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
-pub use drive::{ACTIVE_SHORT, OVERSPEED_FACTOR, RECTIFY_GRACE_S};
+pub use drive::{ACTIVE_SHORT, MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, RECTIFY_GRACE_S};
 pub use drive::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput,
     DriveOptions, DriveOutput, DriveState, Fault, OpenLoopDesign, Protection, SpeedRefLimit,

@@ -14,9 +14,16 @@
 //!   (of either device) is delayed by `T_eff = T_dead + T_on − T_off` (the common delay
 //!   `T_off` of all edges is neglected), and while both devices are off a diode conducts:
 //!   the lower one (`−V_f`) for `i_x > 0`, the upper one (`V_DC + V_f`) for `i_x < 0`. A
-//!   conducting switch drops `V_sat`, a conducting diode `V_f`. The current sign is taken at
-//!   the start of each interval between edges, through the same smooth sign (it only matters
-//!   within `i_ε` of zero). A duty of exactly 0 or 1 does not switch.
+//!   conducting switch drops `V_sat`, a conducting diode `V_f`. With `sign_band_a = 0` the
+//!   sign is the hard sign of the instantaneous current, ripple included: when a leg's
+//!   current reaches zero within its dead time both diodes block and the phase floats, its
+//!   leg voltage the one that holds its current at zero, until a switch turns on again (or
+//!   that voltage would leave the rails). The fading of the dead-time error at mean currents
+//!   within the ripple then comes out of the physics, and so does the zero-current clamp:
+//!   from zero current, legs whose edges lie closer than the dead time drive no current at
+//!   all (a dead zone of `±2 T_eff/T` in duty difference). With a band (the default,
+//!   [`DEFAULT_SIGN_BAND`]) the sign is the smooth sign of the current at the start of each
+//!   interval between edges, which has neither. A duty of exactly 0 or 1 does not switch.
 //!
 //! Motor phase voltages are taken relative to the isolated neutral; the amplitude-invariant
 //! Clarke transform ([`crate::clarke`]) discards the common mode, so the leg voltages are
@@ -28,13 +35,14 @@
 use pmsm_core::{InverterParams, ParamError, ParamReason, in_range, non_negative};
 
 use crate::motor::Motor;
-use crate::{PlantError, clarke};
+use crate::{PlantError, clarke, inverse_clarke};
 
 /// Default width of the smooth current sign, relative to the current-sensing full scale.
 ///
 /// A real leg's dead-time error does not switch at the zero crossing of the *average* current
 /// but fades over the band where the PWM ripple makes the instantaneous current change sign;
 /// for motor B at 14 kHz and 540 V the ripple amplitude is about 0.2 A, 1 % of a 20 A sensor.
+/// Used by the averaged model only: the switching model gets the fading from the ripple.
 pub const DEFAULT_SIGN_BAND: f64 = 0.01;
 
 /// Which inverter model a [`Plant`](crate::Plant) integrates.
@@ -59,10 +67,12 @@ pub struct InverterModel {
     pub t_on_s: f64,
     /// Switch turn-off delay `T_off`, s.
     pub t_off_s: f64,
-    /// Width `i_ε` of the smooth current sign `clamp(i/i_ε, −1, 1)`, A. Zero: the hard sign,
-    /// taken once per PWM period at its start by the averaged model (as the switching model
-    /// takes it once per interval between edges), so that a current at zero does not flip the
-    /// dead-time voltage between the Runge–Kutta stages of one step.
+    /// Width `i_ε` of the smooth current sign `clamp(i/i_ε, −1, 1)`, A. Zero: the hard sign.
+    /// The averaged model takes it once per PWM period at its start, so that a current at zero
+    /// does not flip the dead-time voltage between the Runge–Kutta stages of one step. The
+    /// switching model takes it from the instantaneous current, ripple included, and lets a
+    /// dead leg whose current reaches zero float (the module documentation); with a band it
+    /// takes the smooth sign at the start of each interval between edges instead.
     pub sign_band_a: f64,
     /// Averaged or switching-level model.
     pub kind: InverterKind,
@@ -347,6 +357,8 @@ impl LegPlan {
 pub struct Inverter {
     model: InverterModel,
     legs: [LegMemory; 3],
+    /// Period average of each leg's voltage over the last period, V.
+    leg_average_v: [f64; 3],
 }
 
 impl Inverter {
@@ -361,12 +373,20 @@ impl Inverter {
         Ok(Self {
             model,
             legs: [idle; 3],
+            leg_average_v: [0.0; 3],
         })
     }
 
     /// The model.
     pub fn model(&self) -> &InverterModel {
         &self.model
+    }
+
+    /// Period average of each leg's voltage against the negative rail over the last period,
+    /// V: integrated edge by edge by the switching model, the averaged model's value at the
+    /// start of the period otherwise.
+    pub fn leg_average_v(&self) -> [f64; 3] {
+        self.leg_average_v
     }
 
     /// Switches between the averaged and the switching-level model.
@@ -403,7 +423,10 @@ impl Inverter {
             InverterKind::Averaged => {
                 let m = self.model;
                 let h = m.averaged_substep_limit_s(vdc_v, motor.min_inductance_h());
-                match m.period_signs(motor.i_abc()) {
+                let i0 = motor.i_abc();
+                self.leg_average_v =
+                    [0, 1, 2].map(|k| m.leg_voltage_averaged_v(d[k], vdc_v, i0[k]));
+                match m.period_signs(i0) {
                     None => motor.step_with_limit(period_s, load_nm, h, |i| {
                         m.averaged_alpha_beta_v(d, vdc_v, i)
                     })?,
@@ -415,7 +438,9 @@ impl Inverter {
                     }
                 }
             }
-            InverterKind::Switching => self.switching_period(motor, &plans, vdc_v, load_nm)?,
+            InverterKind::Switching => {
+                self.leg_average_v = self.switching_period(motor, &plans, vdc_v, load_nm)?
+            }
         }
         self.legs = plans.map(|p| p.end(period_s));
         Ok(())
@@ -444,6 +469,7 @@ impl Inverter {
         // The band acts like a resistance V_DC/(2 i_ε): limit the sub-step as for the
         // averaged model, with the whole bus across it.
         let h = m.averaged_substep_limit_s(vdc_v, motor.min_inductance_h());
+        self.leg_average_v = motor.i_abc().map(leg);
         motor.step_with_limit(period_s, load_nm, h, |i| {
             clarke([leg(i[0]), leg(i[1]), leg(i[2])])
         })?;
@@ -456,14 +482,18 @@ impl Inverter {
     }
 
     /// Integrates one period edge by edge: between consecutive edges every leg's conduction is
-    /// fixed and the current sign is taken at the start of the interval.
+    /// fixed. With the hard sign (`sign_band_a = 0`) a conducting switch or diode pair follows
+    /// the sign of the instantaneous current at the start of the interval (it only selects
+    /// `V_sat` or `V_f`), and a leg in its dead time is integrated event by event
+    /// ([`Inverter::dead_interval`]); with a band, every leg takes the smooth sign at the start
+    /// of the interval. Returns the period average of each leg's voltage, V.
     fn switching_period(
         &self,
         motor: &mut Motor,
         plans: &[LegPlan; 3],
         vdc_v: f64,
         load_nm: f64,
-    ) -> Result<(), PlantError> {
+    ) -> Result<[f64; 3], PlantError> {
         let period_s = self.model.period_s();
         let t_dead_s = self.model.effective_dead_time_s();
         // Breakpoints: 0, T, every command edge and every delayed turn-on (≤ 5 per leg).
@@ -493,24 +523,205 @@ impl Inverter {
         times.sort_unstable_by(f64::total_cmp);
 
         let mut t0 = 0.0;
+        let mut area = [0.0; 3];
+        // Diode state of each leg in its dead time, kept across the intervals that other
+        // legs' edges cut it into: ±1 the diode of that current sign conducts, 0 both block.
+        let mut diode = [None::<f64>; 3];
         for &t1 in times.iter() {
             let dt = t1 - t0;
             if dt <= 0.0 {
                 continue;
             }
             let mid = 0.5 * (t0 + t1);
+            let c = plans.map(|p| p.conduction(mid, t_dead_s));
+            let i = motor.i_abc();
+            for k in 0..3 {
+                diode[k] = match (c[k], diode[k]) {
+                    (Conduction::Dead, Some(s)) => Some(s),
+                    (Conduction::Dead, None) => Some(entry_sign(i[k], plans[k].command(mid).0)),
+                    _ => None,
+                };
+            }
+            let band = self.model.sign_band_a > 0.0;
+            if band || diode.iter().all(Option::is_none) {
+                // With a band every leg takes the smooth sign of its current at the start of
+                // the interval (a dead leg's diode then conducts part way for a current
+                // within the band).
+                let sign = |x: f64| {
+                    if band {
+                        self.model.smooth_sign(x)
+                    } else {
+                        hard_sign(x)
+                    }
+                };
+                let v = [0, 1, 2].map(|k| self.model.leg_voltage_v(c[k], vdc_v, sign(i[k])));
+                let v_ab = clarke(v);
+                motor.step(v_ab[0], v_ab[1], load_nm, dt)?;
+                for k in 0..3 {
+                    area[k] += v[k] * dt;
+                }
+            } else {
+                self.dead_interval(motor, c, &mut diode, vdc_v, load_nm, dt, &mut area)?;
+            }
+            t0 = t1;
+        }
+        Ok(area.map(|a| a / period_s))
+    }
+
+    /// One interval in which at least one leg is in its dead time. The current of such a leg
+    /// picks its diode by its sign; when it reaches zero both diodes block and the phase
+    /// floats: its leg voltage is whatever keeps its current at zero (solved from the motor's
+    /// current rate, which is affine in the voltage), until that voltage would leave the
+    /// rails, when the diode of the current it then drives conducts. The interval is cut at
+    /// each zero crossing, predicted from the current rate (the rate hardly changes over a
+    /// dead time, and the prediction is checked before a leg is held).
+    #[allow(clippy::too_many_arguments)]
+    fn dead_interval(
+        &self,
+        motor: &mut Motor,
+        c: [Conduction; 3],
+        diode: &mut [Option<f64>; 3],
+        vdc_v: f64,
+        load_nm: f64,
+        dt: f64,
+        area: &mut [f64; 3],
+    ) -> Result<(), PlantError> {
+        let m = &self.model;
+        let (lo, hi) = (-m.v_f_v, vdc_v + m.v_f_v);
+        let mut left = dt;
+        for event in 0..MAX_DEAD_EVENTS {
             let i = motor.i_abc();
             let mut v = [0.0; 3];
             for k in 0..3 {
-                let c = plans[k].conduction(mid, t_dead_s);
-                v[k] = self
-                    .model
-                    .leg_voltage_v(c, vdc_v, self.model.smooth_sign(i[k]));
+                v[k] = match diode[k] {
+                    Some(s) => m.leg_voltage_v(c[k], vdc_v, s),
+                    None => m.leg_voltage_v(c[k], vdc_v, hard_sign(i[k])),
+                };
+            }
+            // Floating legs: the voltages that hold their currents at zero.
+            let floating: [bool; 3] = diode.map(|s| s == Some(0.0));
+            if floating.iter().any(|&f| f) {
+                solve_floating(motor, &mut v, &floating, 0.5 * (lo + hi));
+                for k in 0..3 {
+                    if floating[k] && !(lo..=hi).contains(&v[k]) {
+                        // Even at a rail the current leaves zero: that rail's diode conducts.
+                        let s = if v[k] < lo { 1.0 } else { -1.0 };
+                        diode[k] = Some(s);
+                        v[k] = m.leg_voltage_v(c[k], vdc_v, s);
+                    }
+                }
+            }
+            // The first conducting diode whose current reaches zero within the interval.
+            let r = inverse_clarke(motor.current_rate_ab(clarke(v)));
+            let mut tau = left;
+            let mut hit = None;
+            for k in 0..3 {
+                if let Some(s) = diode[k]
+                    && s != 0.0
+                    && s * r[k] < 0.0
+                {
+                    let t = (-i[k] / r[k]).max(0.0);
+                    if t < tau {
+                        tau = t;
+                        hit = Some(k);
+                    }
+                }
+            }
+            if event + 1 == MAX_DEAD_EVENTS {
+                // Out of events (never seen): finish the interval with these voltages.
+                tau = left;
+                hit = None;
             }
             let v_ab = clarke(v);
-            motor.step(v_ab[0], v_ab[1], load_nm, dt)?;
-            t0 = t1;
+            motor.step(v_ab[0], v_ab[1], load_nm, tau)?;
+            for k in 0..3 {
+                area[k] += v[k] * tau;
+            }
+            left -= tau;
+            if let Some(k) = hit {
+                // Held at zero only if the linear prediction did reach it.
+                let i_now = motor.i_abc()[k];
+                if diode[k].is_some_and(|s| s * i_now <= ZERO_TOLERANCE * libm::fabs(i[k])) {
+                    diode[k] = Some(0.0);
+                }
+            }
+            if left <= 0.0 {
+                return Ok(());
+            }
         }
         Ok(())
+    }
+}
+
+/// Most events (zero crossings, diode turn-ons) handled in one interval: three legs can each
+/// reach zero and start conducting again.
+const MAX_DEAD_EVENTS: usize = 8;
+
+/// Relative current left at a predicted zero crossing that still counts as zero.
+const ZERO_TOLERANCE: f64 = 1e-3;
+
+/// Current below which a leg entering its dead time counts as carrying none, A.
+const ZERO_CURRENT_A: f64 = 1e-9;
+
+/// The diode state of a leg entering its dead time with current `i_a`, its command now
+/// `high`. Without current nothing moves the output node (its capacitance holds it): the leg
+/// stays at the rail it was switched to, as the diode of that rail would hold it; if the
+/// other legs then drive the current the other way, the event loop lets it float.
+fn entry_sign(i_a: f64, high: bool) -> f64 {
+    if libm::fabs(i_a) > ZERO_CURRENT_A {
+        hard_sign(i_a)
+    } else if high {
+        // Was low: the lower rail, as the lower diode (i > 0) holds it.
+        1.0
+    } else {
+        -1.0
+    }
+}
+
+/// Phase-current rates `d i_abc/dt`, A/s, of `motor` under leg voltages `v`.
+fn rate_abc(motor: &Motor, v: [f64; 3]) -> [f64; 3] {
+    inverse_clarke(motor.current_rate_ab(clarke(v)))
+}
+
+/// Sets the voltages of the `floating` legs of `v` so that their current rates vanish (not
+/// clamped to the rails). The rates are affine in the voltages, so one evaluation per
+/// unknown plus one gives them exactly. With all three legs floating (every current zero)
+/// only the differences matter: the first keeps `v_mid`.
+fn solve_floating(motor: &Motor, v: &mut [f64; 3], floating: &[bool; 3], v_mid: f64) {
+    let mut ks = [0usize; 3];
+    let mut n = 0;
+    for k in 0..3 {
+        if floating[k] {
+            v[k] = v_mid;
+            ks[n] = k;
+            n += 1;
+        }
+    }
+    let ks = if n == 3 { &ks[1..3] } else { &ks[..n] };
+    let r0 = rate_abc(motor, *v);
+    // Columns of the rate's sensitivity to each unknown leg voltage, per volt.
+    let dv = v_mid.abs().max(1.0);
+    let col = |j: usize| {
+        let mut w = *v;
+        w[j] += dv;
+        let r = rate_abc(motor, w);
+        [0, 1, 2].map(|k| (r[k] - r0[k]) / dv)
+    };
+    match *ks {
+        [a] => {
+            let m = col(a)[a];
+            if m != 0.0 {
+                v[a] -= r0[a] / m;
+            }
+        }
+        [a, b] => {
+            let (ca, cb) = (col(a), col(b));
+            let det = ca[a] * cb[b] - cb[a] * ca[b];
+            if det != 0.0 {
+                v[a] += (-r0[a] * cb[b] + r0[b] * cb[a]) / det;
+                v[b] += (-ca[a] * r0[b] + ca[b] * r0[a]) / det;
+            }
+        }
+        _ => {}
     }
 }

@@ -384,6 +384,21 @@ impl Motor {
         inverse_clarke(self.c.i_ab(&self.x))
     }
 
+    /// Rate of change of the stationary-frame currents `d[i_α, i_β]/dt`, A/s, at the present
+    /// state under stationary voltage `v_ab` (V). Affine in `v_ab`; the switching inverter
+    /// solves it for the voltage of a phase whose diodes both block (a floating phase).
+    pub fn current_rate_ab(&self, v_ab: [f64; 2]) -> [f64; 2] {
+        let d = self.c.deriv(self.mech, &self.x, v_ab, 0.0);
+        if self.c.dq {
+            // i_αβ = R(θ) i_dq: d/dt = R(θ) di_dq/dt + dθ/dt · R(θ + π/2) i_dq.
+            let r = inverse_park([d[0], d[1]], self.x[2]);
+            let i = inverse_park([self.x[0], self.x[1]], self.x[2]);
+            [r[0] - d[2] * i[1], r[1] + d[2] * i[0]]
+        } else {
+            [d[0], d[1]]
+        }
+    }
+
     /// Electromagnetic torque, N·m (see the module documentation for its scaling).
     pub fn torque_nm(&self) -> f64 {
         self.c.torque(&self.x)

@@ -139,6 +139,10 @@ impl Tim1Pwm {
         tim.psc().write(|w| w.psc().set(timing.psc));
         tim.arr().write(|w| w.arr().set(timing.arr as u32));
         // RCR = 1: in centre-aligned mode, one update (preload transfer) per PWM period.
+        // Written before CEN, so the update falls on the overflow, the counter's peak where
+        // the ADC samples (RM0440 §28.3.3): the compare values written by the interrupt after
+        // sample k act from peak k + 1, one period late (`crate::PWM_UPDATE_DELAY_SAMPLES`,
+        // docs/drive.md, PWM update delay). Keep this write before `cen` below.
         tim.rcr().write(|w| w.rep().set(1));
         // Legs in PWM mode 1 with preload; channel 4 in PWM mode 2 with preload, so that
         // OC4REF (TRGO2) rises when the counter passes CCR4 on its way up: with

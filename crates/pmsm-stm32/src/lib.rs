@@ -27,6 +27,20 @@ pub mod hw;
 
 pub use pmsm_core::{PhaseCurrentSampler, ThreePhasePwm, apply, control_step};
 
+/// Control samples between a control step and the PWM period its duties act over on this
+/// binding's TIM1: its drive wants `DriveOptions::pwm_delay_samples = Some(1)`.
+///
+/// The ADC samples at the counter's peak (TRGO2) and the interrupt writes the compare
+/// registers a few µs later; they are preloaded (`OCxPE`), and the preload is transferred at
+/// the update event, which with `RCR = 1` in centre-aligned mode comes once per period, at the
+/// overflow (the peak), because RCR is written before the counter is started (RM0440 §28.3.3,
+/// repetition counter: for odd RCR the update falls on the overflow if RCR was written
+/// before the counter was launched, on the underflow otherwise). So the duties computed from
+/// the sample at peak `k` load at peak `k + 1` and act over `[t_{k+1}, t_{k+2})`: one period
+/// after the `[t_k, t_{k+1})` the drive assumes without delay (docs/drive.md, PWM update
+/// delay).
+pub const PWM_UPDATE_DELAY_SAMPLES: u8 = 1;
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -52,9 +52,11 @@ pub struct Inverter {
     /// Diode forward drop, V.
     #[serde(default)]
     pub v_f_v: f64,
-    /// Width of the averaged model's current sign, A: the dead-time error fades linearly
-    /// within `±sign_band_a` of zero; 0 is the hard sign (held over each PWM period). Default
-    /// `pmsm_plant::DEFAULT_SIGN_BAND` of the ADC full scale.
+    /// Width of the current sign, A: the dead-time error fades linearly within
+    /// `±sign_band_a` of zero; 0 is the hard sign (the averaged model holds it over each PWM
+    /// period; the switching model takes it from the instantaneous current and lets a phase
+    /// float at zero, `pmsm_plant::inverter`). Default `pmsm_plant::DEFAULT_SIGN_BAND` of
+    /// the ADC full scale.
     pub sign_band_a: Option<f64>,
 }
 

@@ -10,8 +10,8 @@
 //! dead_time_s = 2e-6
 //! model = "switching"              # or "averaged" (default "averaged")
 //! current_full_scale_a = 10.0      # optional ADC range, default 4 × rated peak current
-//! sign_band_a = 0.0                # averaged model: 0 = hard current sign (default 1 % of
-//!                                  # the full scale)
+//! sign_band_a = 0.0                # 0 = hard current sign (default 1 % of the full scale);
+//!                                  # switching model: instantaneous, a phase floats at zero
 //!
 //! [control]
 //! sample_hz = 14000.0              # default pwm_hz
@@ -21,6 +21,9 @@
 //! deadtime_compensation = true
 //! dead_time_s = 1.5e-6             # what the drive's compensation assumes (default: the
 //!                                  # inverter's dead_time_s, which the plant keeps)
+//! pwm_update_delay_periods = 1     # the plant applies the duties 1 PWM period later
+//!                                  # (pmsm-stm32's TIM1; default 0)
+//! pwm_delay_compensation_periods = 1 # what the drive compensates (default: the plant's)
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0

@@ -179,7 +179,17 @@ pub struct DriveDesign {
     /// [`crate::OVERMOD_SIX_STEP_REQUEST`] `V_DC` and field weakening holds the applied
     /// vector's length within `2 V_DC/3`, the hexagon's vertex.
     pub overmodulation: bool,
+    /// Control samples between a step's return and the period its duties act over: 0 when
+    /// they act over the coming period (a loop that applies them at once), 1 on pmsm-stm32's
+    /// TIM1, whose compare preload loads them one period later (docs/drive.md, PWM update
+    /// delay). The drive advances the voltage's angle by `ω̂ T_s` per sample of delay and
+    /// gives the estimator the voltage that acted over the period that just ended. At most
+    /// [`MAX_PWM_DELAY_SAMPLES`]; default 0.
+    pub pwm_delay_samples: u8,
 }
+
+/// Longest PWM update delay the drive compensates, control samples.
+pub const MAX_PWM_DELAY_SAMPLES: u8 = 2;
 
 impl DriveDesign {
     /// Defaults for `motor` on `inverter` with the bases `base`, running `estimator`.
@@ -213,6 +223,7 @@ impl DriveDesign {
             protection: Protection::default_for(inverter, base),
             flux: FluxDesign::default(),
             overmodulation: false,
+            pwm_delay_samples: 0,
         }
     }
 }
@@ -231,6 +242,8 @@ pub struct DriveOptions {
     pub deadtime: Option<DeadTimeMode>,
     /// Overmodulation up to six-step ([`DriveDesign::overmodulation`]; default off).
     pub overmodulation: bool,
+    /// [`DriveDesign::pwm_delay_samples`]; `None`: 0.
+    pub pwm_delay_samples: Option<u8>,
 }
 
 impl Default for DriveOptions {
@@ -240,6 +253,7 @@ impl Default for DriveOptions {
             startup: None,
             deadtime: None,
             overmodulation: false,
+            pwm_delay_samples: None,
         }
     }
 }
@@ -271,6 +285,13 @@ pub struct DriveConfig {
     pub(crate) flux: FluxConfig,
     /// [`super::RECTIFY_GRACE_S`] in samples.
     pub(crate) rectify_grace_samples: u32,
+    /// [`DriveDesign::pwm_delay_samples`].
+    pub(crate) pwm_delay: u8,
+    /// Half sample steps from a sample's angle to the middle of the period its voltage acts
+    /// in: `2 pwm_delay + 1`.
+    pub(crate) mid_turns: i32,
+    /// `mid_turns − 2`, for the estimator's frames (`drive::mid_frame`).
+    pub(crate) mid_frame_k: i32,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
@@ -312,6 +333,9 @@ impl DriveConfig {
             design.deadtime.mode = mode;
         }
         design.overmodulation = options.overmodulation;
+        if let Some(d) = options.pwm_delay_samples {
+            design.pwm_delay_samples = d;
+        }
         Self::new(motor, inverter, sample_hz, design)
     }
 
@@ -394,6 +418,12 @@ impl DriveConfig {
         };
         let p = design.protection;
         positive("protection.overcurrent_a", p.overcurrent_a)?;
+        in_range(
+            "pwm_delay_samples",
+            design.pwm_delay_samples as f64,
+            0.0,
+            MAX_PWM_DELAY_SAMPLES as f64,
+        )?;
         positive("protection.vdc_min_v", p.vdc_min_v)?;
         in_range("protection.vdc_max_v", p.vdc_max_v, p.vdc_min_v, 1e4)?;
         Ok(Self {
@@ -469,6 +499,9 @@ impl DriveConfig {
             },
             flux,
             rectify_grace_samples: libm::ceil(super::RECTIFY_GRACE_S / ts) as u32,
+            pwm_delay: design.pwm_delay_samples,
+            mid_turns: 2 * design.pwm_delay_samples as i32 + 1,
+            mid_frame_k: 2 * design.pwm_delay_samples as i32 - 1,
             base,
             design,
         })

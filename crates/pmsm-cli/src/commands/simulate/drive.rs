@@ -26,6 +26,8 @@ pub struct DriveSetup {
     pub sample_hz: f64,
     /// PWM periods per control sample.
     pub pwm_per_sample: usize,
+    /// PWM periods the plant applies the duties later (`[control] pwm_update_delay_periods`).
+    pub pwm_delay_periods: usize,
 }
 
 /// Builds the drive of `sc`: bases, default design for the motor, the scenario's overrides,
@@ -54,6 +56,12 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
     let estimator = estimator_kind(sc.control.observer);
     let mut design = DriveDesign::default_for(&model, &drive_inverter, &base, estimator);
     apply_control(&mut design, sc, &model);
+    let pwm_delay_periods = sc
+        .control
+        .pwm_update_delay_periods
+        .unwrap_or(crate::scenario_file::control::DEFAULT_PWM_UPDATE_DELAY_PERIODS)
+        as usize;
+    design.pwm_delay_samples = compensation_samples(sc, pwm_delay_periods, pwm_per_sample)?;
     let config = DriveConfig::new(&model, &drive_inverter, sample_hz, design)
         .map_err(|e| anyhow!("{shown}: {e}"))?;
     Ok(DriveSetup {
@@ -64,7 +72,39 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
         drive_inverter,
         sample_hz,
         pwm_per_sample,
+        pwm_delay_periods,
     })
+}
+
+/// The delay the drive compensates, control samples: `[control]
+/// pwm_delay_compensation_periods` (a whole number of samples), by default the plant's delay
+/// rounded to samples.
+fn compensation_samples(sc: &Scenario, plant_periods: usize, pwm_per_sample: usize) -> Result<u8> {
+    let samples = match sc.control.pwm_delay_compensation_periods {
+        Some(n) => {
+            let n = n as usize;
+            if !n.is_multiple_of(pwm_per_sample) {
+                bail!(
+                    "{}: `control.pwm_delay_compensation_periods` ({n}) must be a whole number \
+                     of control samples ({pwm_per_sample} PWM periods each)",
+                    sc.path.display()
+                );
+            }
+            n / pwm_per_sample
+        }
+        None => (plant_periods + pwm_per_sample / 2) / pwm_per_sample,
+    };
+    u8::try_from(samples)
+        .ok()
+        .filter(|&s| s <= pmsm_core::MAX_PWM_DELAY_SAMPLES)
+        .ok_or_else(|| {
+            anyhow!(
+                "{}: the drive compensates at most {} control samples of PWM update delay \
+                 ({samples} asked: `control.pwm_delay_compensation_periods`)",
+                sc.path.display(),
+                pmsm_core::MAX_PWM_DELAY_SAMPLES
+            )
+        })
 }
 
 /// The motor as the drive believes it to be: `control.model_motor` if given, else the

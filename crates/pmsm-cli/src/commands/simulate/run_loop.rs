@@ -8,6 +8,7 @@ use anyhow::{Result, anyhow};
 use pmsm_core::Abc;
 use pmsm_core::{Drive, DriveInput, DriveOutput, DriveState};
 use pmsm_plant::{Plant, PlantError};
+use std::collections::VecDeque;
 use std::f64::consts::{PI, TAU};
 
 /// One control sample of a run, in SI units.
@@ -116,6 +117,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
     let mut injector = Injector::new(&sc.faults);
     let mut recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
     let startup = setup.drive.config().design.startup;
+    let mut compare = CompareRegisters::new(setup.pwm_delay_periods);
     setup.drive.start();
     for k in 0..n {
         let t = k as f64 / setup.sample_hz;
@@ -140,8 +142,16 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
                 .map_err(|e| anyhow!("{shown}: thermal: {e}"))?;
         }
         let load_nm = sc.load.at(t);
-        advance_plant(&mut plant, &out, load_nm, setup.pwm_per_sample, &mut sensed)
-            .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
+        let periods = setup.pwm_per_sample;
+        advance_plant(
+            &mut plant,
+            &out,
+            &mut compare,
+            load_nm,
+            periods,
+            &mut sensed,
+        )
+        .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
     }
     Ok(Run {
         rows,
@@ -224,18 +234,54 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
     }
 }
 
+/// The timer's compare registers: duties written at a period's start are preloaded and act
+/// `delay` periods later (pmsm-stm32's TIM1, docs/drive.md, PWM update delay); until then the
+/// active ones hold, from the start half duties (the timer's initial compare value).
+struct CompareRegisters {
+    /// Writes not yet transferred, oldest first (`None`: nothing written that period).
+    preload: VecDeque<Option<[f64; 3]>>,
+    active: [f64; 3],
+    delay: usize,
+}
+
+impl CompareRegisters {
+    fn new(delay: usize) -> Self {
+        Self {
+            preload: VecDeque::with_capacity(delay + 1),
+            active: [0.5; 3],
+            delay,
+        }
+    }
+
+    /// One period's start: `write` goes in, the write of `delay` periods ago becomes active.
+    fn period(&mut self, write: Option<[f64; 3]>) -> [f64; 3] {
+        self.preload.push_back(write);
+        if self.preload.len() > self.delay
+            && let Some(Some(d)) = self.preload.pop_front()
+        {
+            self.active = d;
+        }
+        self.active
+    }
+}
+
 /// Integrates the plant over the `periods` PWM periods of one control sample under `out` and
-/// `load_nm`, and updates what the sensors read.
+/// `load_nm`, and updates what the sensors read. The duties go through the compare
+/// registers; the outputs go on and off at once (the break and `MOE` are not preloaded).
 fn advance_plant(
     plant: &mut Plant,
     out: &DriveOutput,
+    compare: &mut CompareRegisters,
     load_nm: f64,
     periods: usize,
     sensed: &mut Sensed,
 ) -> Result<(), PlantError> {
-    for _ in 0..periods {
+    for k in 0..periods {
+        // The drive writes its duties once per sample, at the first period's start.
+        let write = (k == 0 && out.pwm_on).then(|| out.duties.to_f64());
+        let duties = compare.period(write);
         let sample = if out.pwm_on {
-            plant.step_pwm(out.duties.to_f64(), load_nm)
+            plant.step_pwm(duties, load_nm)
         } else {
             plant.step_off(load_nm)
         }?;
@@ -244,4 +290,36 @@ fn advance_plant(
         sensed.vdc_v = sample.vdc_v;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::CompareRegisters;
+
+    // The registers copy duties, never compute them: exact comparison is the point.
+    #[allow(clippy::float_cmp)]
+    #[test]
+    fn compare_registers_load_the_duties_delay_periods_later() {
+        let (a, b, c) = ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 0.9]);
+        // Without delay a write acts in its own period.
+        let mut r = CompareRegisters::new(0);
+        assert_eq!(r.period(Some(a)), a);
+        assert_eq!(r.period(None), a);
+        assert_eq!(r.period(Some(b)), b);
+        // One period: the timer's initial half duties first, then each write a period late;
+        // a period without a write keeps the active values.
+        let mut r = CompareRegisters::new(1);
+        assert_eq!(r.period(Some(a)), [0.5; 3]);
+        assert_eq!(r.period(Some(b)), a);
+        assert_eq!(r.period(None), b);
+        assert_eq!(r.period(Some(c)), b);
+        assert_eq!(r.period(None), c);
+        // Two periods.
+        let mut r = CompareRegisters::new(2);
+        assert_eq!(r.period(Some(a)), [0.5; 3]);
+        assert_eq!(r.period(Some(b)), [0.5; 3]);
+        assert_eq!(r.period(Some(c)), a);
+        assert_eq!(r.period(None), b);
+        assert_eq!(r.period(None), c);
+    }
 }
