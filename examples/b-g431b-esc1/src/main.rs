@@ -41,13 +41,22 @@ fn halt(why: &str) -> ! {
     }
 }
 
+/// The drive's options on this board: defaults, and the compensation of TIM1's compare
+/// preload (the duties of a sample act one period later, `pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES`).
+fn drive_options() -> pmsm_core::DriveOptions {
+    pmsm_core::DriveOptions {
+        pwm_delay_samples: Some(pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES),
+        ..pmsm_core::DriveOptions::default()
+    }
+}
+
 #[rtic::app(device = stm32g4::stm32g431, peripherals = true)]
 mod app {
-    use super::{board, halt, motor};
+    use super::{board, drive_options, halt, motor};
     use cortex_m::peripheral::DWT;
     use heapless::Vec;
     use heapless::spsc::Queue;
-    use pmsm_core::{Drive, DriveConfig, DriveInput, DriveOptions, DriveState, FaultRecorder, Pu};
+    use pmsm_core::{Drive, DriveConfig, DriveInput, DriveState, FaultRecorder, Pu};
     use pmsm_core::{
         Identified, Identify, IdentifyConfig, IdentifyDesign, IdentifyError, IdentifyOutput, Stage,
         clarke,
@@ -214,7 +223,7 @@ mod app {
         // Configuration (floating point, once).
         let (m, inv) = (motor::motor(), motor::inverter());
         let sample_hz = motor::PWM_HZ as f64;
-        let config = match DriveConfig::from_params(&m, &inv, sample_hz, DriveOptions::default()) {
+        let config = match DriveConfig::from_params(&m, &inv, sample_hz, drive_options()) {
             Ok(c) => c,
             Err(e) => {
                 defmt::error!("drive configuration: {}", e);
@@ -701,7 +710,7 @@ mod app {
             &m,
             &motor::inverter(),
             motor::PWM_HZ as f64,
-            DriveOptions::default(),
+            drive_options(),
         ) {
             Ok(c) => c,
             Err(e) => {

@@ -112,7 +112,7 @@ impl Setup {
 
     /// The drive of Khlaief, Boussak, Gossa (2012) of `pmsm simulate` (every default of
     /// [`DriveDesign::default_for`](pmsm_core::DriveDesign::default_for)) with `estimator`
-    /// and `startup`.
+    /// and `startup`, compensating a PWM update delay of one period as on the board.
     pub fn drive(
         &self,
         estimator: EstimatorKind,
@@ -121,6 +121,9 @@ impl Setup {
         let options = DriveOptions {
             estimator,
             startup: Some(startup),
+            // As the board (pmsm-stm32's TIM1 loads the duties one period later): the step
+            // pays for the delay's compensation.
+            pwm_delay_samples: Some(1),
             ..DriveOptions::default()
         };
         DriveConfig::from_params(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ, options)
