@@ -5,7 +5,8 @@
 //! - `cargo xtask figures`: regenerates the paper figures under `docs/figures/`.
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 //! - `cargo xtask sweep [N]`: N random healthy scenarios (default 200), none may fault.
-//! - `cargo xtask robustness`: prints the parameter-error table of `docs/PERFORMANCE.md`.
+//! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
+//!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
 
 mod accuracy;
 mod board;
@@ -15,6 +16,7 @@ mod examples;
 mod observers_motor_a;
 mod pil;
 mod plant_speed;
+mod robustness;
 mod sweep;
 
 use anyhow::{Result, bail};
@@ -44,10 +46,38 @@ fn main() -> Result<()> {
             sweep::run(n)
         }
         "robustness" => {
-            print!("{}", drive_motor_b::robustness_section()?);
-            Ok(())
+            let cell: Vec<f64> = std::env::args()
+                .skip(2)
+                .filter_map(|x| x.parse().ok())
+                .collect();
+            match cell[..] {
+                [r, l, f] => robustness::one(r, l, f),
+                [inverter_averaged] => {
+                    let inverter = if inverter_averaged > 0.0 {
+                        "averaged"
+                    } else {
+                        "switching"
+                    };
+                    for tracking in [false, true] {
+                        let (o, last) = robustness::heating(inverter, tracking)?;
+                        println!(
+                            "heating, {inverter}, tracking {tracking}: {} R̂ {:.3} ψ̂ {:.4}",
+                            o.cell(),
+                            last[0],
+                            last[1]
+                        );
+                    }
+                    Ok(())
+                }
+                _ => {
+                    print!("{}", robustness::section()?);
+                    Ok(())
+                }
+            }
         }
-        _ => bail!("usage: cargo xtask perf | figures | examples | robustness | sweep [N]"),
+        _ => {
+            bail!("usage: cargo xtask perf | figures | examples | robustness [R L PSI] | sweep [N]")
+        }
     }
 }
 
@@ -65,7 +95,7 @@ fn perf() -> Result<()> {
     eprintln!("running the drive of Khlaief, Boussak, Gossa (2012) ...");
     doc.push_str(&drive_motor_b::section()?);
     eprintln!("robustness to parameter errors ...");
-    doc.push_str(&drive_motor_b::robustness_section()?);
+    doc.push_str(&robustness::section()?);
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");

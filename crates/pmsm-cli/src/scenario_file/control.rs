@@ -81,6 +81,10 @@ pub struct Control {
     /// speed (default false).
     #[serde(default)]
     pub field_weakening: bool,
+    /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
+    /// default false).
+    #[serde(default)]
+    pub tracking: bool,
 }
 
 impl Control {

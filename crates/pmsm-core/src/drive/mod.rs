@@ -22,12 +22,16 @@ mod config;
 mod interface;
 mod monitor;
 mod startup;
+mod tracking;
 
 pub use config::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveConfig, DriveDesign, DriveOptions,
     OVERSPEED_FACTOR, OpenLoopDesign, Protection, StartupMode,
 };
 pub use interface::{DriveInput, DriveOutput, DriveState, Fault, SpeedRefLimit, Telemetry};
+pub use tracking::{
+    Frozen, ModelCoefficients, Tracker, TrackerDesign, TrackerInput, TrackerStatus, WRITE_THRESHOLD,
+};
 
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
@@ -109,6 +113,25 @@ impl Drive {
     /// What the last step computed.
     pub fn telemetry(&self) -> &Telemetry {
         &self.telemetry
+    }
+
+    /// The voltage applied over the coming period as the estimator will see it (after the
+    /// dead-time correction), αβ, per unit: what [`Tracker`] reads besides the telemetry.
+    pub fn estimator_voltage(&self) -> AlphaBeta {
+        self.v_est
+    }
+
+    /// Rewrites the coefficients of the drive's model that depend on `R` and `ψ` (the
+    /// current-model MRAS's, and the `ψ` of the current loops' feed-forward) with those a
+    /// [`Tracker`] computed. Between two steps (on an MCU with the control interrupt masked);
+    /// the other estimators keep their model (docs/tracking.md).
+    pub fn set_model(&mut self, c: &ModelCoefficients) {
+        #[allow(irrefutable_let_patterns)]
+        #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+        if let AnyEstimator::MrasCurrent(m) = &mut self.estimator {
+            m.set_model(&c.mras);
+        }
+        self.current.set_psi(c.psi);
     }
 
     /// The estimator's health figure ([`Estimator::health`]) filtered over 10 ms, as the
