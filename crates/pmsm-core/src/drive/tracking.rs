@@ -99,16 +99,17 @@ pub struct TrackerDesign {
 }
 
 impl TrackerDesign {
-    /// An update every 16 samples; learning above 10 % of `ω_b`, the current within 0.1 `I_b`
-    /// of its reference, 50 ms after entering `Run`; the model's `R` within ±50 %, `ψ` within
+    /// An update every 8 samples; learning above 10 % of `ω_b`, the current within 0.2 `I_b`
+    /// of its reference, the speed changing by less than `2 ω_b` per second, 10 ms after
+    /// entering `Run`; the model's `R` within ±50 %, `ψ` within
     /// ±30 % (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB;
-    /// 10 K/√s; 0.3 % of the base voltage of noise; 0.5 % per update at most.
+    /// 10 K/√s; 1 % of the base voltage of noise; 1 % per update at most.
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
             interval_samples: 8,
             min_speed_rad_s: 0.1 * base.omega_e_rad_s,
             max_current_error_a: 0.2 * base.current_a,
-            max_accel_rad_s2: 0.2 * base.omega_e_rad_s,
+            max_accel_rad_s2: 2.0 * base.omega_e_rad_s,
             settle_s: 0.01,
             rs_sigma: 0.5,
             flux_sigma: 0.3,

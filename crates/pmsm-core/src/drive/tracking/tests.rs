@@ -280,7 +280,10 @@ fn at_one_operating_point_a_temperature_rise_moves_r_up_and_psi_down() {
 
 #[test]
 fn frozen_outside_run_below_the_least_speed_when_saturated_or_in_a_transient() {
-    let (mut t, r) = setup(|d| d.settle_s = 0.01);
+    let (mut t, r) = setup(|d| {
+        d.settle_s = 0.01;
+        d.max_accel_rad_s2 = 0.2 * 2.0 * core::f64::consts::PI * 3000.0 / 60.0 * 3.0;
+    });
     let s = steady(&r, 1.5 * r.r0, 0.8 * r.psi0, 0.5, 1.0, 0.0, 0.0, 0.0);
     let fresh = t.ratios();
     let check = |t: &mut Tracker, i: TrackerInput, why: Frozen| {
