@@ -118,7 +118,8 @@ pub use drive::{
     StartupMode, Telemetry,
 };
 pub use drive::{
-    Frozen, ModelCoefficients, Tracker, TrackerDesign, TrackerInput, TrackerStatus, WRITE_THRESHOLD,
+    Frozen, ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
+    WRITE_THRESHOLD,
 };
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};

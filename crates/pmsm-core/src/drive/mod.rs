@@ -30,7 +30,8 @@ pub use config::{
 };
 pub use interface::{DriveInput, DriveOutput, DriveState, Fault, SpeedRefLimit, Telemetry};
 pub use tracking::{
-    Frozen, ModelCoefficients, Tracker, TrackerDesign, TrackerInput, TrackerStatus, WRITE_THRESHOLD,
+    Frozen, ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
+    WRITE_THRESHOLD,
 };
 
 use crate::angle::{Angle, SinCos};
