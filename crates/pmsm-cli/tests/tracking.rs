@@ -35,38 +35,42 @@ fn motor_b(
 
 #[test]
 fn a_heating_motor_is_tracked() {
-    // The plant's R to ×1.4 and ψ to ×0.9 between 1 s and 9 s at 1500 r/min with rated load
-    // (averaged inverter: the switching one gives the same figures, `cargo xtask robustness`).
-    let thermal = "\n[thermal]\nt_s = [0.0, 1.0, 9.0]\nrs_factor = [1.0, 1.0, 1.4]\nflux_factor = [1.0, 1.0, 0.9]\n";
-    let mut figures = Vec::new();
-    for tracking in [false, true] {
-        let sc = motor_b(10.0, "averaged", (1.0, 1.0, 1.0), tracking, thermal);
-        let run = run_scenario(&sc).unwrap();
-        assert!(run.rows.iter().all(|r| r.fault().is_empty()));
-        let tail = window(&run.rows, 9.5, 10.0);
-        let last = run.rows.last().unwrap();
-        let (rms, speed) = (rms_angle(&tail), speed_err(&tail));
-        println!(
-            "tracking {tracking}: {rms:.4} rad rms, speed {:.3} %, R̂ {:.3} Ω, ψ̂ {:.4} Wb",
-            100.0 * speed,
-            last.model_rs_flux[0],
-            last.model_rs_flux[1]
+    // The plant's R to ×1.4 and ψ to ×0.9 between 1 s and 9 s at 1500 r/min with rated load,
+    // with the switching and the averaged inverter.
+    let thermal = "\n[thermal]\nt_s = [0.0, 1.0, 9.0]\nrs_factor = [1.0, 1.0, 1.4]\n\
+                   flux_factor = [1.0, 1.0, 0.9]\n";
+    for inverter in ["switching", "averaged"] {
+        let mut figures = Vec::new();
+        for tracking in [false, true] {
+            let sc = motor_b(10.0, inverter, (1.0, 1.0, 1.0), tracking, thermal);
+            let run = run_scenario(&sc).unwrap();
+            assert!(run.rows.iter().all(|r| r.fault().is_empty()));
+            let tail = window(&run.rows, 9.5, 10.0);
+            let last = run.rows.last().unwrap();
+            let (rms, speed) = (rms_angle(&tail), speed_err(&tail));
+            println!(
+                "{inverter}, tracking {tracking}: {rms:.4} rad rms, speed {:.3} %, R̂ {:.3} Ω, \
+                 ψ̂ {:.4} Wb",
+                100.0 * speed,
+                last.model_rs_flux[0],
+                last.model_rs_flux[1]
+            );
+            figures.push((rms, speed, last.model_rs_flux));
+            assert!(rms <= 0.02, "{inverter}: {rms}");
+            assert!(speed <= 0.01, "{inverter}: {speed}");
+        }
+        let (off, on) = (figures[0], figures[1]);
+        // Better with the tracking, and ψ̂ within 3 % of the plant's at the end.
+        assert!(on.0 < 0.5 * off.0, "{inverter}: {} vs {}", on.0, off.0);
+        let psi_true = 0.9 * 0.305;
+        assert!(
+            (on.2[1] - psi_true).abs() < 0.03 * psi_true,
+            "{inverter}: {} vs {psi_true}",
+            on.2[1]
         );
-        figures.push((rms, speed, last.model_rs_flux));
-        assert!(rms <= 0.02, "{rms}");
-        assert!(speed <= 0.01, "{speed}");
+        // R̂ moved the right way (the plant's 10.08 Ω), within its bounds.
+        assert!(on.2[0] > 8.5 && on.2[0] <= 14.4, "{inverter}: {}", on.2[0]);
     }
-    let (off, on) = (figures[0], figures[1]);
-    // Better with the tracking, and ψ̂ within 3 % of the plant's at the end.
-    assert!(on.0 < 0.5 * off.0, "{} vs {}", on.0, off.0);
-    let psi_true = 0.9 * 0.305;
-    assert!(
-        (on.2[1] - psi_true).abs() < 0.03 * psi_true,
-        "{} vs {psi_true}",
-        on.2[1]
-    );
-    // R̂ moved the right way (the plant's 10.08 Ω), within its bounds.
-    assert!(on.2[0] > 8.5 && on.2[0] <= 14.4, "{}", on.2[0]);
 }
 
 #[test]
