@@ -41,8 +41,8 @@
 //! # Cost
 //!
 //! `f32` arithmetic, about 60 operations and one sin/cos per [`Tracker::update`]; the new
-//! coefficients ([`Tracker::coefficients`], `f64`, two exponentials) only when an estimate
-//! moved by more than [`WRITE_THRESHOLD`]. [`Drive::set_model`] copies 14 words.
+//! coefficients ([`Tracker::coefficients`], `f64`, two exponentials) only when the estimates,
+//! low-passed over [`TrackerDesign::apply_time_s`], moved by more than [`WRITE_THRESHOLD`]. [`Drive::set_model`] copies 14 words.
 
 use super::{Drive, DriveState};
 use crate::angle::Angle;
@@ -93,6 +93,10 @@ pub struct TrackerDesign {
     /// Largest electrical acceleration at which the tracker learns, rad/s² (of the speed
     /// estimate filtered over [`SPEED_FILTER_S`]): a ramp is not a steady state.
     pub max_accel_rad_s2: f64,
+    /// Time constant of the low-pass from the filter's estimates to the values written to the
+    /// drive, s: the estimates jitter at the update rate, and each write moves the MRAS's
+    /// model current, which its adaptation reads as a speed error.
+    pub apply_time_s: f64,
     /// Largest relative change of `R̂` or `ψ̂` per update (keeps the estimator's frame smooth
     /// while a large model error is learnt).
     pub max_step: f64,
@@ -103,7 +107,8 @@ impl TrackerDesign {
     /// of its reference, the speed changing by less than `2 ω_b` per second, 10 ms after
     /// entering `Run`; the model's `R` within ±50 %, `ψ` within
     /// ±30 % (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB;
-    /// 10 K/√s; 1 % of the base voltage of noise; 1 % per update at most.
+    /// 10 K/√s; 1 % of the base voltage of noise; 1 % per update at most; 20 ms of low-pass
+    /// to the drive.
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
             interval_samples: 8,
@@ -121,6 +126,7 @@ impl TrackerDesign {
             independent_per_sqrt_s: 0.003,
             noise_v: 0.01 * base.voltage_v,
             max_step: 0.01,
+            apply_time_s: 0.02,
         }
     }
 }
@@ -232,9 +238,12 @@ pub struct Tracker {
     lo: [f32; 2],
     hi: [f32; 2],
     max_step: f32,
-    /// `(R/R₀, ψ/ψ₀)`, its covariance `(p_RR, p_Rψ, p_ψψ)`, and the values last written.
+    /// `(R/R₀, ψ/ψ₀)`, its covariance `(p_RR, p_Rψ, p_ψψ)`, their low-pass (what the drive
+    /// is given) and its values last written.
     x: [f32; 2],
     p: [f32; 3],
+    applied: [f32; 2],
+    apply_gain: f32,
     written: [f32; 2],
     /// Updates in `Run` since entering it.
     run_updates: u32,
@@ -301,6 +310,7 @@ impl Tracker {
         )?;
         in_range("tracking.noise_v", d.noise_v, 1e-9, 1e6)?;
         in_range("tracking.max_step", d.max_step, 1e-6, 1.0)?;
+        in_range("tracking.apply_time_s", d.apply_time_s, 0.0, 100.0)?;
         let drift2 = d.drift_k_per_sqrt_s * d.drift_k_per_sqrt_s * dt;
         let ind2 = d.independent_per_sqrt_s * d.independent_per_sqrt_s * dt;
         let (gr, gp) = (d.rs_per_k, d.flux_per_k);
@@ -333,6 +343,8 @@ impl Tracker {
             max_step: d.max_step as f32,
             x: [1.0, 1.0],
             p: [vr as f32, 0.0, vp as f32],
+            applied: [1.0, 1.0],
+            apply_gain: (dt / d.apply_time_s).min(1.0) as f32,
             written: [1.0, 1.0],
             run_updates: 0,
             status: TrackerStatus::default(),
@@ -344,17 +356,17 @@ impl Tracker {
         &self.design
     }
 
-    /// The tracked resistance, Ω.
+    /// The tracked resistance as the drive is given it, Ω.
     pub fn rs_ohm(&self) -> f64 {
-        self.motor.rs_ohm * self.x[0] as f64
+        self.motor.rs_ohm * self.applied[0] as f64
     }
 
-    /// The tracked magnet flux, Wb.
+    /// The tracked magnet flux as the drive is given it, Wb.
     pub fn flux_wb(&self) -> f64 {
-        self.motor.flux_wb * self.x[1] as f64
+        self.motor.flux_wb * self.applied[1] as f64
     }
 
-    /// `(R̂/R₀, ψ̂/ψ₀)`.
+    /// The filter's `(R̂/R₀, ψ̂/ψ₀)` (before the low-pass to the drive).
     pub fn ratios(&self) -> (f32, f32) {
         (self.x[0], self.x[1])
     }
@@ -368,12 +380,24 @@ impl Tracker {
     /// Returns whether the estimates moved enough since the last write for
     /// [`Tracker::coefficients`] to be written to the drive.
     pub fn update(&mut self, input: &TrackerInput) -> bool {
+        self.learn(input);
+        let g = self.apply_gain;
+        self.applied = [
+            self.applied[0] + g * (self.x[0] - self.applied[0]),
+            self.applied[1] + g * (self.x[1] - self.applied[1]),
+        ];
+        libm::fabsf(self.applied[0] - self.written[0]) > WRITE_THRESHOLD
+            || libm::fabsf(self.applied[1] - self.written[1]) > WRITE_THRESHOLD
+    }
+
+    /// The gates and the filter of one update.
+    fn learn(&mut self, input: &TrackerInput) {
         self.status.learning = false;
         let w_hat = pu(input.omega);
         if !input.running {
             self.run_updates = 0;
             self.status.frozen = Frozen::NotRunning;
-            return false;
+            return;
         }
         if self.run_updates == 0 {
             (self.w_f, self.dw_f) = (w_hat, 0.0);
@@ -401,7 +425,7 @@ impl Tracker {
         };
         if let Some(f) = frozen {
             self.status.frozen = f;
-            return false;
+            return;
         }
         // The voltage acts over the coming period: its frame is at the mid-period angle.
         let angle = input.theta.0 as f32 * (core::f32::consts::TAU / 4_294_967_296.0)
@@ -414,7 +438,7 @@ impl Tracker {
         let (ed, eq) = (wd - r_hat * id, wq - r_hat * iq);
         let norm = libm::sqrtf(ed * ed + eq * eq);
         if norm.is_nan() || norm <= 0.0 {
-            return false;
+            return;
         }
         let (nd, nq) = (ed / norm, eq / norm);
         let y = nd * wd + nq * wq;
@@ -425,8 +449,6 @@ impl Tracker {
         self.correct(y, phi);
         self.status.learning = true;
         self.status.learnt = self.status.learnt.saturating_add(1);
-        libm::fabsf(self.x[0] - self.written[0]) > WRITE_THRESHOLD
-            || libm::fabsf(self.x[1] - self.written[1]) > WRITE_THRESHOLD
     }
 
     /// The random walk of one update, the variances held within the prior's.
@@ -474,13 +496,13 @@ impl Tracker {
     /// default bounds on a motor whose drive could be built).
     pub fn coefficients(&mut self) -> Result<ModelCoefficients, ConfigError> {
         let mut m = self.motor;
-        m.rs_ohm *= self.x[0] as f64;
-        m.flux_wb *= self.x[1] as f64;
+        m.rs_ohm *= self.applied[0] as f64;
+        m.flux_wb *= self.applied[1] as f64;
         let c = ModelCoefficients {
             mras: MrasModel::new(&m, &self.base)?,
             psi: pu_from_f64(m.flux_wb / self.base.flux_wb),
         };
-        self.written = self.x;
+        self.written = self.applied;
         Ok(c)
     }
 
