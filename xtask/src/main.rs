@@ -5,7 +5,8 @@
 //! - `cargo xtask figures`: regenerates the paper figures under `docs/figures/`.
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 //! - `cargo xtask sweep [N]`: N random healthy scenarios (default 200), none may fault.
-//! - `cargo xtask robustness`: prints the parameter-error table of `docs/PERFORMANCE.md`.
+//! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
+//!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
 //!   `docs/PERFORMANCE.md`).
 
@@ -18,6 +19,7 @@ mod map;
 mod observers_motor_a;
 mod pil;
 mod plant_speed;
+mod robustness;
 mod sweep;
 
 use anyhow::{Result, bail};
@@ -48,15 +50,41 @@ fn main() -> Result<()> {
         }
         "map" => map::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "robustness" => {
-            print!("{}", drive_motor_b::robustness_section()?);
-            Ok(())
+            let cell: Vec<f64> = std::env::args()
+                .skip(2)
+                .filter_map(|x| x.parse().ok())
+                .collect();
+            match cell[..] {
+                [r, l, f] => robustness::one(r, l, f),
+                [inverter_averaged] => {
+                    let inverter = if inverter_averaged > 0.0 {
+                        "averaged"
+                    } else {
+                        "switching"
+                    };
+                    for tracking in [false, true] {
+                        let (o, last) = robustness::heating(inverter, tracking)?;
+                        println!(
+                            "heating, {inverter}, tracking {tracking}: {} R̂ {:.3} ψ̂ {:.4}",
+                            o.cell(),
+                            last[0],
+                            last[1]
+                        );
+                    }
+                    Ok(())
+                }
+                _ => {
+                    print!("{}", robustness::section()?);
+                    Ok(())
+                }
+            }
         }
         "plant-speed" => {
             print!("{}", plant_speed::section()?);
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness | plant-speed | sweep [N] | map"
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | plant-speed | sweep [N] | map"
         ),
     }
 }
@@ -75,7 +103,7 @@ fn perf() -> Result<()> {
     eprintln!("running the drive of Khlaief, Boussak, Gossa (2012) ...");
     doc.push_str(&drive_motor_b::section()?);
     eprintln!("robustness to parameter errors ...");
-    doc.push_str(&drive_motor_b::robustness_section()?);
+    doc.push_str(&robustness::section()?);
     // The operating map is `cargo xtask map`'s (a minute more): kept as it is.
     doc.push_str(&map::kept_section());
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");

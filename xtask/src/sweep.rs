@@ -54,9 +54,12 @@ pub fn run(n: usize) -> Result<()> {
         let load = rated_nm * rng.uniform(0.0, 0.8) * rpm.signum();
         let theta = rng.uniform(0.0, 360.0);
         let t_load = rng.uniform(0.8, 1.2);
+        // XTASK_TRACKING=1: the same scenarios with the tracking of R and ψ (docs/tracking.md).
+        let tracking = std::env::var_os("XTASK_TRACKING").is_some();
         let text = format!(
             "duration_s = 1.6\nmotor = {{ {} }}\n[inverter]\nvdc_v = {vdc}\npwm_hz = {pwm}\ndead_time_s = {dt}\n\
              [control]\nobserver = \"mras-current\"\nstartup = \"ipd\"\ndeadtime_compensation = true\n\
+             tracking = {tracking}\n\
              [initial]\ntheta_e_deg = {theta}\n[speed_ref]\nt_s = [0.0, 0.2, 0.7]\nrpm = [0.0, 0.0, {rpm}]\n\
              [load]\nt_s = [0.0, {t_load}, {}]\nnm = [0.0, 0.0, {load}]\n",
             body.trim_end().replace('\n', ", "),

@@ -124,7 +124,7 @@ fn simulate_writes_the_documented_columns_and_names_bad_keys() {
     assert_eq!(
         header,
         "t_s,speed_ref_rpm,speed_rpm,speed_est_rpm,theta_e_rad,theta_e_est_rad,i_d_a,i_q_a,i_q_ref_a,\
-         v_alpha_v,v_beta_v,duty_a,duty_b,duty_c,pwm_on,fault,health"
+         v_alpha_v,v_beta_v,duty_a,duty_b,duty_c,pwm_on,fault,health,rs_est_ohm,flux_est_wb"
     );
     let rows = std::fs::read_to_string(&out).unwrap().lines().count() - 1;
     assert_eq!(rows, (0.4 * 14000.0) as usize);

@@ -117,6 +117,10 @@ pub use drive::{
     DriveOptions, DriveOutput, DriveState, Fault, OpenLoopDesign, Protection, SpeedRefLimit,
     StartupMode, Telemetry,
 };
+pub use drive::{
+    Frozen, ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
+    WRITE_THRESHOLD,
+};
 pub use error::ConfigError;
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};
 pub use hal::{DutyCyclePwm, PhaseCurrentSampler, PwmErrors, ThreePhasePwm, apply, control_step};
@@ -135,8 +139,8 @@ pub use observer::mras_emf::{
 };
 pub use observer::{
     AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MAX_GAIN_TS,
-    MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, Nlo, NloConfig,
-    ObserverInput, default_observer_gain,
+    MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, MrasModel, Nlo,
+    NloConfig, ObserverInput, default_observer_gain,
 };
 pub use params::{
     InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative, positive,

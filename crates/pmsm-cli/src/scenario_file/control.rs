@@ -101,6 +101,10 @@ pub struct Control {
     /// Overmodulation up to six-step beyond the modulator's circle (default false).
     #[serde(default)]
     pub overmodulation: bool,
+    /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
+    /// default false).
+    #[serde(default)]
+    pub tracking: bool,
 }
 
 impl Control {

@@ -224,6 +224,12 @@ pub struct CurrentController {
 }
 
 impl CurrentController {
+    /// Replaces the magnet flux of the decoupling feed-forward, per unit (on-line tracking,
+    /// docs/tracking.md); the integrators are kept.
+    pub fn set_psi(&mut self, psi: Pu) {
+        self.config.psi = psi;
+    }
+
     /// Controllers with zero integral state.
     pub fn new(config: CurrentConfig) -> Self {
         Self {

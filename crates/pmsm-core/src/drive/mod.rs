@@ -25,12 +25,17 @@ mod config;
 mod interface;
 mod monitor;
 mod startup;
+mod tracking;
 
 pub use config::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveConfig, DriveDesign, DriveOptions,
     MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, OpenLoopDesign, Protection, StartupMode,
 };
 pub use interface::{DriveInput, DriveOutput, DriveState, Fault, SpeedRefLimit, Telemetry};
+pub use tracking::{
+    Frozen, ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
+    WRITE_THRESHOLD,
+};
 
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
@@ -135,6 +140,27 @@ impl Drive {
         &self.telemetry
     }
 
+    /// The voltage the estimator will be given at the next sample, αβ per unit: the vector
+    /// that acts over the coming period (with a PWM update delay, the one modulated that many
+    /// samples before) less the dead-time error. What [`Tracker`] reads besides the telemetry,
+    /// and what tests hold against the plant's applied voltage.
+    pub fn estimator_voltage(&self) -> AlphaBeta {
+        self.v_est
+    }
+
+    /// Rewrites the coefficients of the drive's model that depend on `R` and `ψ` (the
+    /// current-model MRAS's, and the `ψ` of the current loops' feed-forward) with those a
+    /// [`Tracker`] computed. Between two steps (on an MCU with the control interrupt masked);
+    /// the other estimators keep their model (docs/tracking.md).
+    pub fn set_model(&mut self, c: &ModelCoefficients) {
+        #[allow(irrefutable_let_patterns)]
+        #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+        if let AnyEstimator::MrasCurrent(m) = &mut self.estimator {
+            m.set_model(&c.mras);
+        }
+        self.current.set_psi(c.psi);
+    }
+
     /// The estimator's health figure ([`Estimator::health`]) filtered over 10 ms, as the
     /// loss-of-lock check sees it (zero outside the closed loop).
     pub fn health(&self) -> Pu {
@@ -159,13 +185,6 @@ impl Drive {
     fn speed_ref_used(&self) -> Pu {
         let max = self.config.flux.max_speed();
         self.speed_ref.min(max).max(max.saturating_neg())
-    }
-
-    /// The voltage the estimator will be given for the period the last step's duties apply
-    /// over, αβ per unit: the modulated vector less the dead-time error (for tests that hold
-    /// it against the plant's applied voltage).
-    pub fn estimator_voltage(&self) -> AlphaBeta {
-        self.v_est
     }
 
     /// The field-weakening offset of the d-axis reference (≤ 0; zero below base speed).

@@ -116,7 +116,7 @@ pub(crate) fn gain(key: &'static str, value: f64) -> Result<Gain, ConfigError> {
     })
 }
 
-pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains};
+pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasModel};
 
 /// Which estimator a drive runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

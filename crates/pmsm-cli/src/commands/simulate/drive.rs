@@ -5,7 +5,7 @@ use crate::scenario_file::{CompensationMode, ObserverKind, Scenario, Startup};
 use anyhow::{Result, anyhow, bail};
 use pmsm_core::DeadTimeMode;
 use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
-use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode};
+use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode, Tracker, TrackerDesign};
 use pmsm_core::{EstimatorKind, MrasCurrentGains};
 use std::f64::consts::TAU;
 
@@ -28,6 +28,9 @@ pub struct DriveSetup {
     pub pwm_per_sample: usize,
     /// PWM periods the plant applies the duties later (`[control] pwm_update_delay_periods`).
     pub pwm_delay_periods: usize,
+    /// The tracker of R and ψ (`[control] tracking`), run every
+    /// `TrackerDesign::interval_samples` samples.
+    pub tracker: Option<Tracker>,
 }
 
 /// Builds the drive of `sc`: bases, default design for the motor, the scenario's overrides,
@@ -64,8 +67,15 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
     design.pwm_delay_samples = compensation_samples(sc, pwm_delay_periods, pwm_per_sample)?;
     let config = DriveConfig::new(&model, &drive_inverter, sample_hz, design)
         .map_err(|e| anyhow!("{shown}: {e}"))?;
+    let tracker = if sc.control.tracking {
+        let design = TrackerDesign::default_for(&base);
+        Some(Tracker::new(&model, &base, design).map_err(|e| anyhow!("{shown}: {e}"))?)
+    } else {
+        None
+    };
     Ok(DriveSetup {
         drive: Drive::new(config),
+        tracker,
         base,
         model,
         inverter,

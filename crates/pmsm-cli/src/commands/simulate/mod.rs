@@ -2,9 +2,11 @@
 //!
 //! Output, one row per control sample: `t_s, speed_ref_rpm, speed_rpm, speed_est_rpm,
 //! theta_e_rad, theta_e_est_rad, i_d_a, i_q_a, i_q_ref_a, v_alpha_v, v_beta_v, duty_a, duty_b,
-//! duty_c, pwm_on, fault, health`. Angles in [−π, π); `i_d`, `i_q` in the true rotor frame;
-//! `i_q_ref` and the voltage are the controller's; `health` is the estimator's health figure as
-//! the drive's loss-of-lock check filters it (per unit; see `Estimator::health`).
+//! duty_c, pwm_on, fault, health, rs_est_ohm, flux_est_wb`. Angles in [−π, π); `i_d`, `i_q` in
+//! the true rotor frame; `i_q_ref` and the voltage are the controller's; `health` is the
+//! estimator's health figure as the drive's loss-of-lock check filters it (per unit; see
+//! `Estimator::health`); `rs_est_ohm`, `flux_est_wb` the drive's R and ψ (tracked with
+//! `[control] tracking`, docs/tracking.md).
 //!
 //! Layout: [`drive`] builds the fixed-point drive from the scenario's motor, `[inverter]` and
 //! `[control]`; [`plant`] builds the floating-point plant and injects `[faults]`;

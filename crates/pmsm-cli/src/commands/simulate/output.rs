@@ -9,7 +9,7 @@ use std::io::Write as _;
 use std::path::Path;
 
 /// The output columns, in order.
-pub const OUTPUT_COLUMNS: [&str; 17] = [
+pub const OUTPUT_COLUMNS: [&str; 19] = [
     "t_s",
     "speed_ref_rpm",
     "speed_rpm",
@@ -27,6 +27,8 @@ pub const OUTPUT_COLUMNS: [&str; 17] = [
     "pwm_on",
     "fault",
     "health",
+    "rs_est_ohm",
+    "flux_est_wb",
 ];
 
 /// Writes `rows` as CSV with the [`OUTPUT_COLUMNS`]; refuses non-finite values.
@@ -63,11 +65,13 @@ pub(super) fn write_csv(path: &Path, rows: &[Row]) -> Result<()> {
         let line: Vec<String> = nums.iter().map(|x| format!("{x}")).collect();
         writeln!(
             w,
-            "{},{},{},{}",
+            "{},{},{},{},{},{}",
             line.join(","),
             u8::from(r.pwm_on),
             r.fault(),
-            r.health
+            r.health,
+            r.model_rs_flux[0],
+            r.model_rs_flux[1]
         )
         .map_err(err)?;
     }

@@ -46,6 +46,10 @@ pub struct Row {
     /// In the closed loop with the reference below the estimator's least speed
     /// (`pmsm_core::SpeedRefLimit`): the reference the speed loop holds instead, r/min.
     pub speed_ref_held_rpm: Option<f64>,
+    /// The tracked R and ψ (Ω, Wb) with `[control] tracking`, else the drive's model's.
+    pub model_rs_flux: [f64; 2],
+    /// The tracker's status after this sample, with `[control] tracking`.
+    pub tracker: Option<pmsm_core::TrackerStatus>,
 }
 
 impl Row {
@@ -123,6 +127,11 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         let t = k as f64 / setup.sample_hz;
         let speed_ref_rpm = sc.speed_ref.at(t);
         let (input, out) = control_step(&mut setup, speed_ref_rpm, &sensed);
+        if let Some(tr) = &mut setup.tracker
+            && k % tr.design().interval_samples as usize == 0
+        {
+            tr.run(&mut setup.drive);
+        }
         recorder.record(k, &setup.drive, &input);
         if let (None, Some(pmsm_core::SpeedRefLimit::AboveMaxSpeed { used, .. })) =
             (speed_ref_limited, setup.drive.speed_ref_limit())
@@ -231,6 +240,11 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
             }
             _ => None,
         },
+        model_rs_flux: match &setup.tracker {
+            Some(tr) => [tr.rs_ohm(), tr.flux_wb()],
+            None => [setup.model.rs_ohm, setup.model.flux_wb],
+        },
+        tracker: setup.tracker.as_ref().map(pmsm_core::Tracker::status),
     }
 }
 

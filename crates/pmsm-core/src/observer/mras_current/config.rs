@@ -119,20 +119,8 @@ impl MrasCurrentConfig {
             }
         }
         let mech = gains.kl > 0.0;
-        let (r, ld, lq, psi) = (
-            motor.rs_ohm / base.impedance_ohm,
-            motor.ld_h / base.inductance_h,
-            motor.lq_h / base.inductance_h,
-            motor.flux_wb / base.flux_wb,
-        );
-        let rho = lq / ld;
-        let a_d = libm::exp(-0.5 * motor.rs_ohm * ts / motor.ld_h);
-        let a_q = libm::exp(-0.5 * motor.rs_ohm * ts / motor.lq_h);
-        let (g_d, g_q) = ((1.0 - a_d) / r, (1.0 - a_q) / r);
-        let (psi_d, psi_q) = (psi / ld, psi / lq);
-        let m = |key, v| coef::<MODEL_FRAC>(key, v, 0.0, MODEL_MAX);
-        let off_d = pu_in("ld_h", a_d * psi_d, 0.0, OFFSET_MAX)?;
-        let off_q = pu_in("lq_h", a_q * psi_q, 0.0, OFFSET_MAX)?;
+        let model = MrasModel::new(motor, base)?;
+        let rho = (motor.lq_h / base.inductance_h) / (motor.ld_h / base.inductance_h);
         // ξ̃ = (L_q/L_d) ξ: gains on ξ̃ are the SI gains times I_b²/(ρ ω_b) (ξ in A², ω in pu).
         let scale = base.current_a * base.current_a / (rho * base.omega_e_rad_s);
         let omega_max = MAX_SPEED_PU.min(1.0 / (base.omega_e_rad_s * ts));
@@ -185,20 +173,20 @@ impl MrasCurrentConfig {
         }
         let turn_per_speed = turn as i32;
         Ok(Self {
-            xd_i: m("ld_h", a_d * a_d)?,
-            xd_v: m("ld_h", (1.0 + a_d) * g_d)?,
-            xq_i: m("lq_h", a_d * a_q * rho)?,
-            xq_v: m("lq_h", a_d * rho * g_q + g_d)?,
-            yq_i: m("lq_h", a_q * a_q)?,
-            yq_v: m("lq_h", (1.0 + a_q) * g_q)?,
-            yd_i: m("ld_h", a_q * a_d / rho)?,
-            yd_v: m("ld_h", a_q * g_d / rho + g_q)?,
-            off_d,
-            off_d_acc: (off_d.to_bits() as i64) << MODEL_FRAC,
-            off_q_acc: (off_q.to_bits() as i64) << MODEL_FRAC,
+            xd_i: model.xd_i,
+            xd_v: model.xd_v,
+            xq_i: model.xq_i,
+            xq_v: model.xq_v,
+            yq_i: model.yq_i,
+            yq_v: model.yq_v,
+            yd_i: model.yd_i,
+            yd_v: model.yd_v,
+            off_d: model.off_d,
+            off_d_acc: model.off_d_acc,
+            off_q_acc: model.off_q_acc,
             rho2: coef("lq_h", rho * rho, 0.0, 16.0)?,
-            psi_ld: pu_in("ld_h", psi_d, 0.0, OFFSET_MAX)?,
-            xi_scale: coef("ld_h", ld / psi, 0.0, Coef::<24>::limit())?,
+            psi_ld: model.psi_ld,
+            xi_scale: model.xi_scale,
             turn_per_speed,
             ki_ts,
             accel: coef("j_kg_m2", accel, 0.0, MECH_MAX)?,
@@ -220,5 +208,88 @@ fn gain_err(key: &'static str, value: f64, max: f64) -> ConfigError {
         value,
         min: 0.0,
         max,
+    }
+}
+
+/// The coefficients of [`MrasCurrentConfig`] that depend on the motor's resistance and magnet
+/// flux (the model weights, the offsets `Ψ_d`, `Ψ_q`, `ψ/L_d` of ξ̃ and the scale of
+/// [`MrasCurrent::xi`]): what on-line tracking of `R` and `ψ` rewrites
+/// ([`MrasCurrent::set_model`], docs/tracking.md). Built by [`MrasModel::new`] with the same
+/// expressions as [`MrasCurrentConfig::new`], so the same motor gives the same bits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MrasModel {
+    xd_i: Coef<MODEL_FRAC>,
+    xd_v: Coef<MODEL_FRAC>,
+    xq_i: Coef<MODEL_FRAC>,
+    xq_v: Coef<MODEL_FRAC>,
+    yq_i: Coef<MODEL_FRAC>,
+    yq_v: Coef<MODEL_FRAC>,
+    yd_i: Coef<MODEL_FRAC>,
+    yd_v: Coef<MODEL_FRAC>,
+    off_d: Pu,
+    off_d_acc: i64,
+    off_q_acc: i64,
+    psi_ld: Pu,
+    xi_scale: Coef<24>,
+}
+
+impl MrasModel {
+    /// The coefficients for `motor` sampled as in `base` (module docs, "Discretisation").
+    ///
+    /// Errors: [`ConfigError::Gain`] naming `ld_h` or `lq_h` for a weight or offset outside
+    /// its format (module docs, "Formats"); `motor` is not otherwise validated here.
+    pub fn new(motor: &MotorParams, base: &PerUnit) -> Result<Self, ConfigError> {
+        let ts = base.sample_s;
+        let (r, ld, lq, psi) = (
+            motor.rs_ohm / base.impedance_ohm,
+            motor.ld_h / base.inductance_h,
+            motor.lq_h / base.inductance_h,
+            motor.flux_wb / base.flux_wb,
+        );
+        let rho = lq / ld;
+        let a_d = libm::exp(-0.5 * motor.rs_ohm * ts / motor.ld_h);
+        let a_q = libm::exp(-0.5 * motor.rs_ohm * ts / motor.lq_h);
+        let (g_d, g_q) = ((1.0 - a_d) / r, (1.0 - a_q) / r);
+        let (psi_d, psi_q) = (psi / ld, psi / lq);
+        let m = |key, v| coef::<MODEL_FRAC>(key, v, 0.0, MODEL_MAX);
+        let off_d = pu_in("ld_h", a_d * psi_d, 0.0, OFFSET_MAX)?;
+        let off_q = pu_in("lq_h", a_q * psi_q, 0.0, OFFSET_MAX)?;
+        Ok(Self {
+            xd_i: m("ld_h", a_d * a_d)?,
+            xd_v: m("ld_h", (1.0 + a_d) * g_d)?,
+            xq_i: m("lq_h", a_d * a_q * rho)?,
+            xq_v: m("lq_h", a_d * rho * g_q + g_d)?,
+            yq_i: m("lq_h", a_q * a_q)?,
+            yq_v: m("lq_h", (1.0 + a_q) * g_q)?,
+            yd_i: m("ld_h", a_q * a_d / rho)?,
+            yd_v: m("ld_h", a_q * g_d / rho + g_q)?,
+            off_d,
+            off_d_acc: (off_d.to_bits() as i64) << MODEL_FRAC,
+            off_q_acc: (off_q.to_bits() as i64) << MODEL_FRAC,
+            psi_ld: pu_in("ld_h", psi_d, 0.0, OFFSET_MAX)?,
+            xi_scale: coef("ld_h", ld / psi, 0.0, Coef::<24>::limit())?,
+        })
+    }
+}
+
+impl MrasCurrent {
+    /// Replaces the coefficients that depend on `R` and `ψ` (a dozen words; the state is
+    /// kept, so the model current carries on from where it is). Not for the control path:
+    /// call it between two updates (docs/tracking.md).
+    pub fn set_model(&mut self, m: &MrasModel) {
+        let c = &mut self.config;
+        c.xd_i = m.xd_i;
+        c.xd_v = m.xd_v;
+        c.xq_i = m.xq_i;
+        c.xq_v = m.xq_v;
+        c.yq_i = m.yq_i;
+        c.yq_v = m.yq_v;
+        c.yd_i = m.yd_i;
+        c.yd_v = m.yd_v;
+        c.off_d = m.off_d;
+        c.off_d_acc = m.off_d_acc;
+        c.off_q_acc = m.off_q_acc;
+        c.psi_ld = m.psi_ld;
+        c.xi_scale = m.xi_scale;
     }
 }

@@ -135,7 +135,7 @@ mod gains;
 mod tests;
 mod update;
 
-pub use config::MrasCurrentConfig;
+pub use config::{MrasCurrentConfig, MrasModel};
 pub use gains::MrasCurrentGains;
 pub use update::MrasCurrent;
 

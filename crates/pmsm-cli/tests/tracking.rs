@@ -1,0 +1,104 @@
+//! The tracking of R and ψ (`[control] tracking`, docs/tracking.md) through `pmsm simulate`'s
+//! own code: the heating run, and drives whose model of motor B is off.
+
+use pmsm_cli::commands::simulate::run_scenario;
+use pmsm_cli::commands::simulate::stats::{rms_angle, speed_err, window};
+
+mod common;
+use common::example_edited;
+
+/// Motor B from the detection to 1500 r/min, rated load from 1.0 s to the end, `duration`
+/// s; the drive's model off by `r`, `l`, `f`; tracking on or off; `extra` appended.
+fn motor_b(
+    duration: f64,
+    inverter: &str,
+    (r, l, f): (f64, f64, f64),
+    tracking: bool,
+    extra: &str,
+) -> pmsm_cli::scenario_file::Scenario {
+    let control = format!(
+        "deadtime_compensation = true\nmodel_rs_factor = {r}\nmodel_l_factor = {l}\n\
+         model_flux_factor = {f}\ntracking = {tracking}\n"
+    );
+    let load = format!("nm = [0.0, 0.0, 4.0, 4.0, 4.0]\n{extra}");
+    example_edited(
+        "b-800rpm-load.toml",
+        &[
+            ("duration_s = 2.0", &format!("duration_s = {duration}")),
+            ("model = \"switching\"", &format!("model = \"{inverter}\"")),
+            ("deadtime_compensation = true\n", &control),
+            ("rpm = [0.0, 0.0, 800.0]", "rpm = [0.0, 0.0, 1500.0]"),
+            ("nm = [0.0, 0.0, 4.0, 4.0, 0.0]\n", &load),
+        ],
+    )
+}
+
+#[test]
+fn a_heating_motor_is_tracked() {
+    // The plant's R to ×1.4 and ψ to ×0.9 between 1 s and 9 s at 1500 r/min with rated load,
+    // with the switching and the averaged inverter.
+    let thermal = "\n[thermal]\nt_s = [0.0, 1.0, 9.0]\nrs_factor = [1.0, 1.0, 1.4]\n\
+                   flux_factor = [1.0, 1.0, 0.9]\n";
+    for inverter in ["switching", "averaged"] {
+        let mut figures = Vec::new();
+        for tracking in [false, true] {
+            let sc = motor_b(10.0, inverter, (1.0, 1.0, 1.0), tracking, thermal);
+            let run = run_scenario(&sc).unwrap();
+            assert!(run.rows.iter().all(|r| r.fault().is_empty()));
+            let tail = window(&run.rows, 9.5, 10.0);
+            let last = run.rows.last().unwrap();
+            let (rms, speed) = (rms_angle(&tail), speed_err(&tail));
+            println!(
+                "{inverter}, tracking {tracking}: {rms:.4} rad rms, speed {:.3} %, R̂ {:.3} Ω, \
+                 ψ̂ {:.4} Wb",
+                100.0 * speed,
+                last.model_rs_flux[0],
+                last.model_rs_flux[1]
+            );
+            figures.push((rms, speed, last.model_rs_flux));
+            assert!(rms <= 0.02, "{inverter}: {rms}");
+            assert!(speed <= 0.01, "{inverter}: {speed}");
+        }
+        let (off, on) = (figures[0], figures[1]);
+        // Better with the tracking, and ψ̂ within 3 % of the plant's at the end.
+        assert!(on.0 < 0.5 * off.0, "{inverter}: {} vs {}", on.0, off.0);
+        let psi_true = 0.9 * 0.305;
+        assert!(
+            (on.2[1] - psi_true).abs() < 0.03 * psi_true,
+            "{inverter}: {} vs {psi_true}",
+            on.2[1]
+        );
+        // R̂ moved the right way (the plant's 10.08 Ω), within its bounds.
+        assert!(on.2[0] > 8.5 && on.2[0] <= 14.4, "{inverter}: {}", on.2[0]);
+    }
+}
+
+#[test]
+fn drives_whose_model_is_off_keep_their_lock_with_tracking() {
+    // Cells of `cargo xtask robustness` that lose the lock without tracking and hold it with:
+    // ψ ×0.8 with L ×0.7, and R ×0.5; 3.5 s, judged over the last 0.5 s.
+    for cell in [(1.0, 0.7, 0.8), (0.5, 1.0, 1.0)] {
+        let mut outcome = Vec::new();
+        for tracking in [false, true] {
+            let run = run_scenario(&motor_b(3.5, "switching", cell, tracking, "")).unwrap();
+            let fault = run.rows.iter().find(|r| !r.fault().is_empty());
+            let tail = window(&run.rows, 3.0, 3.5);
+            let held = fault.is_none() && rms_angle(&tail) < 0.2 && speed_err(&tail) < 0.05;
+            let last = run.rows.last().unwrap();
+            println!(
+                "{cell:?} tracking {tracking}: {} ({:.3} rad rms), R̂ {:.3} Ω, ψ̂ {:.4} Wb",
+                fault.map_or("no fault", |r| r.fault()),
+                rms_angle(&tail),
+                last.model_rs_flux[0],
+                last.model_rs_flux[1]
+            );
+            outcome.push(held);
+            if tracking {
+                // ψ̂ within 5 % of the plant's (0.305 Wb).
+                let psi = last.model_rs_flux[1];
+                assert!((psi - 0.305).abs() < 0.05 * 0.305, "{cell:?}: {psi}");
+            }
+        }
+        assert_eq!(outcome, [false, true], "{cell:?}");
+    }
+}

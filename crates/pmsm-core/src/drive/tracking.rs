@@ -1,0 +1,523 @@
+//! On-line tracking of the stator resistance `R` and the magnet flux `ψ` (docs/tracking.md):
+//! a background task, off the control path, that reads what [`Drive::step`] already leaves
+//! behind (the estimated frame, the measured current in it, the voltage the estimator saw,
+//! the speed) and rewrites the coefficients of the drive's model that depend on `R` and `ψ`
+//! (the current-model MRAS of Khlaief, Boussak, Gossa (2012), and the `ψ` of the current
+//! loops' feed-forward) through [`Drive::set_model`].
+//!
+//! # Measurement
+//!
+//! In steady state, in the rotor frame, `v = R i + ω (−L_q i_q, L_d i_d) + ω ψ (0, 1)`. In the
+//! estimated frame, off by an angle `δ`, the EMF `ω ψ (−sin δ, cos δ)` turns with it while
+//! `R i` and (nearly) the inductive drop keep their form. So with the model's inductances,
+//! `w = v̂ − ω̂ (−L̂_q î_q, L̂_d î_d)` and the unit vector `n` along `ê = w − R̂ î`,
+//!
+//! ```text
+//! y = n · w = R (n · î) + |ω̂| ψ        (linear in R and ψ, whatever δ is)
+//! ```
+//!
+//! An inductance error adds `ω ΔL i` across the EMF, which tilts `n` but hardly changes `y`
+//! (a second-order `ψ` error, 1 % for `L_q` off by 30 % at rated current).
+//!
+//! # Estimation
+//!
+//! A two-state Kalman filter on `x = (R/R₀, ψ/ψ₀)` (`R₀`, `ψ₀` the drive's model): the prior
+//! is the model's uncertainty (independent, [`TrackerDesign::rs_sigma`],
+//! [`TrackerDesign::flux_sigma`]); the drift is a random walk of the temperature, moving `R`
+//! and `ψ` together by the copper's and the magnet's coefficients. At one operating point only
+//! the sum `R (n·î) + |ω| ψ` is observed; the filter splits a change of it as the drift does
+//! (a rise of temperature: `R` up, `ψ` down) and as the prior does (at speed mostly `ψ`, at
+//! low speed under load mostly `R`), and operating points with another `i/ω` ratio separate
+//! the two. Bounds: `R̂` within [`TrackerDesign::rs_range`], `ψ̂` within
+//! [`TrackerDesign::flux_range`] of the model; [`TrackerStatus`] says when one is at a bound.
+//!
+//! Gates (nothing learnt, the last values kept): outside `Run`, for
+//! [`TrackerDesign::settle_s`] after entering it, below [`TrackerDesign::min_speed_rad_s`]
+//! (the EMF within the voltage errors of the inverter), with the modulator saturated, the
+//! current away from its reference (a transient, where `L di/dt` is not in the model) or the
+//! speed changing faster than [`TrackerDesign::max_accel_rad_s2`] (a ramp: the estimated frame
+//! lags and the current carries the acceleration).
+//!
+//! # Cost
+//!
+//! `f32` arithmetic, about 60 operations and one sin/cos per [`Tracker::update`]; the new
+//! coefficients ([`Tracker::coefficients`], `f64`, two exponentials) only when the estimates,
+//! low-passed over [`TrackerDesign::apply_time_s`], moved by more than [`WRITE_THRESHOLD`]. [`Drive::set_model`] copies 14 words.
+
+use super::{Drive, DriveState};
+use crate::angle::Angle;
+use crate::error::ConfigError;
+use crate::frames::{AlphaBeta, Dq};
+use crate::num::{PU_FRAC, Pu, pu_from_f64};
+use crate::observer::MrasModel;
+use crate::params::{MotorParams, in_range};
+use crate::units::PerUnit;
+
+/// Relative change of `R̂` or `ψ̂` since the last write that makes [`Tracker::update`] ask for
+/// a new write.
+pub const WRITE_THRESHOLD: f32 = 2e-4;
+
+/// Time constant of the tracker's filters on the estimated speed and its derivative, s.
+pub const SPEED_FILTER_S: f64 = 0.02;
+
+/// How the tracker is designed, SI units; [`TrackerDesign::default_for`] gives the defaults.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackerDesign {
+    /// Control samples between two calls of [`Tracker::update`].
+    pub interval_samples: u32,
+    /// Least electrical speed at which the tracker learns, rad/s.
+    pub min_speed_rad_s: f64,
+    /// Largest distance of the measured current from its reference at which the tracker
+    /// learns, A (either axis).
+    pub max_current_error_a: f64,
+    /// Time in `Run` before the tracker learns, s.
+    pub settle_s: f64,
+    /// Relative standard deviation of the model's `R` (prior).
+    pub rs_sigma: f64,
+    /// Relative standard deviation of the model's `ψ` (prior).
+    pub flux_sigma: f64,
+    /// `R̂/R₀` is kept within this range.
+    pub rs_range: (f64, f64),
+    /// `ψ̂/ψ₀` is kept within this range.
+    pub flux_range: (f64, f64),
+    /// Temperature coefficient of the winding's resistance, 1/K (copper 0.00393).
+    pub rs_per_k: f64,
+    /// Temperature coefficient of the magnet's flux, 1/K (NdFeB about −0.001, ferrite −0.002).
+    pub flux_per_k: f64,
+    /// Random walk of the temperature, K/√s.
+    pub drift_k_per_sqrt_s: f64,
+    /// Random walk of `R/R₀` and `ψ/ψ₀` apart from the temperature, 1/√s.
+    pub independent_per_sqrt_s: f64,
+    /// Noise of one measurement `y`, V.
+    pub noise_v: f64,
+    /// Largest electrical acceleration at which the tracker learns, rad/s² (of the speed
+    /// estimate filtered over [`SPEED_FILTER_S`]): a ramp is not a steady state.
+    pub max_accel_rad_s2: f64,
+    /// Time constant of the low-pass from the filter's estimates to the values written to the
+    /// drive, s: the estimates jitter at the update rate, and each write moves the MRAS's
+    /// model current, which its adaptation reads as a speed error.
+    pub apply_time_s: f64,
+    /// Largest relative change of `R̂` or `ψ̂` per update (keeps the estimator's frame smooth
+    /// while a large model error is learnt).
+    pub max_step: f64,
+}
+
+impl TrackerDesign {
+    /// An update every 8 samples; learning above 10 % of `ω_b`, the current within 0.2 `I_b`
+    /// of its reference, the speed changing by less than `2 ω_b` per second, 10 ms after
+    /// entering `Run`; the model's `R` within ±50 %, `ψ` within
+    /// ±30 % (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB;
+    /// 10 K/√s; 1 % of the base voltage of noise; 1 % per update at most; 20 ms of low-pass
+    /// to the drive.
+    pub fn default_for(base: &PerUnit) -> Self {
+        Self {
+            interval_samples: 8,
+            min_speed_rad_s: 0.1 * base.omega_e_rad_s,
+            max_current_error_a: 0.2 * base.current_a,
+            max_accel_rad_s2: 2.0 * base.omega_e_rad_s,
+            settle_s: 0.01,
+            rs_sigma: 0.5,
+            flux_sigma: 0.3,
+            rs_range: (0.5, 2.0),
+            flux_range: (0.6, 1.4),
+            rs_per_k: 0.00393,
+            flux_per_k: -0.001,
+            drift_k_per_sqrt_s: 10.0,
+            independent_per_sqrt_s: 0.003,
+            noise_v: 0.01 * base.voltage_v,
+            max_step: 0.01,
+            apply_time_s: 0.02,
+        }
+    }
+}
+
+/// What the tracker reads of a drive after a step: a copy of a few words, cheap to take with
+/// the control interrupt masked.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackerInput {
+    /// Whether the drive runs in the closed loop.
+    pub running: bool,
+    /// The estimated frame's angle and speed.
+    pub theta: Angle,
+    /// Estimated speed, per unit of `ω_b`.
+    pub omega: Pu,
+    /// Measured current in the estimated frame, and its reference, per unit.
+    pub i_dq: Dq,
+    /// The current reference, per unit.
+    pub i_ref: Dq,
+    /// The voltage applied over the coming period as the estimator will see it (after the
+    /// dead-time correction), αβ, per unit.
+    pub v: AlphaBeta,
+    /// The modulator or a current loop was at its limit.
+    pub saturated: bool,
+}
+
+impl TrackerInput {
+    /// The input of the drive's last step.
+    pub fn sample(drive: &Drive) -> Self {
+        let t = drive.telemetry();
+        Self {
+            running: drive.state() == DriveState::Run,
+            theta: t.theta,
+            omega: t.estimate.omega,
+            i_dq: t.i_dq,
+            i_ref: t.i_ref,
+            v: drive.estimator_voltage(),
+            saturated: t.saturated,
+        }
+    }
+}
+
+/// The coefficients of the drive that depend on `R` and `ψ` ([`Drive::set_model`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelCoefficients {
+    /// The current-model MRAS's.
+    pub mras: MrasModel,
+    /// `ψ` of the current loops' feed-forward, per unit.
+    pub psi: Pu,
+}
+
+/// Why an update did not learn.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Frozen {
+    /// Not in `Run` (idle, detection, alignment, open loop, fault).
+    #[default]
+    NotRunning,
+    /// Within [`TrackerDesign::settle_s`] of entering `Run`.
+    Settling,
+    /// Below [`TrackerDesign::min_speed_rad_s`].
+    LowSpeed,
+    /// The modulator or a current loop at its limit.
+    Saturated,
+    /// The current away from its reference, or the speed changing (a ramp).
+    Transient,
+}
+
+/// What the tracker did at its last update, and where its estimates are.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackerStatus {
+    /// The last update learnt (all gates open).
+    pub learning: bool,
+    /// Why the last update did not learn (meaningless when `learning`).
+    pub frozen: Frozen,
+    /// `R̂` is at a bound of [`TrackerDesign::rs_range`].
+    pub rs_at_bound: bool,
+    /// `ψ̂` is at a bound of [`TrackerDesign::flux_range`].
+    pub flux_at_bound: bool,
+    /// Updates that learnt since the start.
+    pub learnt: u32,
+}
+
+/// The tracker: design in per unit, and the filter's state (`f32`).
+#[derive(Clone, Copy, Debug)]
+pub struct Tracker {
+    /// The drive's model and bases, for the coefficients.
+    motor: MotorParams,
+    base: PerUnit,
+    design: TrackerDesign,
+    /// `R₀`, `ψ₀`, `L_d`, `L_q` of the model, per unit.
+    r0: f32,
+    psi0: f32,
+    ld: f32,
+    lq: f32,
+    /// Half a sample's rotation per unit of speed, rad.
+    half_turn: f32,
+    min_speed: f32,
+    max_di: f32,
+    /// `max_accel_rad_s2` per unit of `ω_b` per update; the filters' gain per update.
+    max_dw: f32,
+    filter: f32,
+    /// The filtered speed and its filtered change per update, per unit.
+    w_f: f32,
+    dw_f: f32,
+    settle_updates: u32,
+    noise2: f32,
+    /// Process noise per update `(q_RR, q_Rψ, q_ψψ)` and the largest variances.
+    q: [f32; 3],
+    p_max: [f32; 2],
+    lo: [f32; 2],
+    hi: [f32; 2],
+    max_step: f32,
+    /// `(R/R₀, ψ/ψ₀)`, its covariance `(p_RR, p_Rψ, p_ψψ)`, their low-pass (what the drive
+    /// is given) and its values last written.
+    x: [f32; 2],
+    p: [f32; 3],
+    applied: [f32; 2],
+    apply_gain: f32,
+    written: [f32; 2],
+    /// Updates in `Run` since entering it.
+    run_updates: u32,
+    status: TrackerStatus,
+}
+
+/// A [`Pu`] as `f32`.
+fn pu(x: Pu) -> f32 {
+    x.to_bits() as f32 * (1.0 / (1u32 << PU_FRAC) as f32)
+}
+
+impl Tracker {
+    /// The tracker of a drive built from `motor` (its model of the motor) with the bases
+    /// `base`.
+    ///
+    /// Errors: [`ConfigError::Param`] naming the `tracking.*` field out of its range.
+    pub fn new(
+        motor: &MotorParams,
+        base: &PerUnit,
+        design: TrackerDesign,
+    ) -> Result<Self, ConfigError> {
+        motor.validate()?;
+        let d = design;
+        let dt = d.interval_samples as f64 * base.sample_s;
+        in_range(
+            "tracking.interval_samples",
+            d.interval_samples as f64,
+            1.0,
+            1e4,
+        )?;
+        in_range(
+            "tracking.min_speed_rad_s",
+            d.min_speed_rad_s,
+            0.0,
+            4.0 * base.omega_e_rad_s,
+        )?;
+        in_range(
+            "tracking.max_current_error_a",
+            d.max_current_error_a,
+            0.0,
+            1e6,
+        )?;
+        in_range("tracking.settle_s", d.settle_s, 0.0, 100.0)?;
+        in_range("tracking.max_accel_rad_s2", d.max_accel_rad_s2, 0.0, 1e9)?;
+        in_range("tracking.rs_sigma", d.rs_sigma, 1e-6, 10.0)?;
+        in_range("tracking.flux_sigma", d.flux_sigma, 1e-6, 10.0)?;
+        in_range("tracking.rs_range.0", d.rs_range.0, 0.01, 1.0)?;
+        in_range("tracking.rs_range.1", d.rs_range.1, 1.0, 100.0)?;
+        in_range("tracking.flux_range.0", d.flux_range.0, 0.1, 1.0)?;
+        in_range("tracking.flux_range.1", d.flux_range.1, 1.0, 10.0)?;
+        in_range("tracking.rs_per_k", d.rs_per_k, -0.1, 0.1)?;
+        in_range("tracking.flux_per_k", d.flux_per_k, -0.1, 0.1)?;
+        in_range(
+            "tracking.drift_k_per_sqrt_s",
+            d.drift_k_per_sqrt_s,
+            0.0,
+            1e3,
+        )?;
+        in_range(
+            "tracking.independent_per_sqrt_s",
+            d.independent_per_sqrt_s,
+            0.0,
+            10.0,
+        )?;
+        in_range("tracking.noise_v", d.noise_v, 1e-9, 1e6)?;
+        in_range("tracking.max_step", d.max_step, 1e-6, 1.0)?;
+        in_range("tracking.apply_time_s", d.apply_time_s, 0.0, 100.0)?;
+        let drift2 = d.drift_k_per_sqrt_s * d.drift_k_per_sqrt_s * dt;
+        let ind2 = d.independent_per_sqrt_s * d.independent_per_sqrt_s * dt;
+        let (gr, gp) = (d.rs_per_k, d.flux_per_k);
+        let (vr, vp) = (d.rs_sigma * d.rs_sigma, d.flux_sigma * d.flux_sigma);
+        Ok(Self {
+            motor: *motor,
+            base: *base,
+            design,
+            r0: (motor.rs_ohm / base.impedance_ohm) as f32,
+            psi0: (motor.flux_wb / base.flux_wb) as f32,
+            ld: (motor.ld_h / base.inductance_h) as f32,
+            lq: (motor.lq_h / base.inductance_h) as f32,
+            half_turn: (0.5 * base.omega_e_rad_s * base.sample_s) as f32,
+            min_speed: (d.min_speed_rad_s / base.omega_e_rad_s) as f32,
+            max_di: (d.max_current_error_a / base.current_a) as f32,
+            max_dw: (d.max_accel_rad_s2 * dt / base.omega_e_rad_s) as f32,
+            filter: (dt / SPEED_FILTER_S).min(1.0) as f32,
+            w_f: 0.0,
+            dw_f: 0.0,
+            settle_updates: libm::ceil(d.settle_s / dt) as u32,
+            noise2: ((d.noise_v / base.voltage_v) * (d.noise_v / base.voltage_v)) as f32,
+            q: [
+                (drift2 * gr * gr + ind2) as f32,
+                (drift2 * gr * gp) as f32,
+                (drift2 * gp * gp + ind2) as f32,
+            ],
+            p_max: [vr as f32, vp as f32],
+            lo: [d.rs_range.0 as f32, d.flux_range.0 as f32],
+            hi: [d.rs_range.1 as f32, d.flux_range.1 as f32],
+            max_step: d.max_step as f32,
+            x: [1.0, 1.0],
+            p: [vr as f32, 0.0, vp as f32],
+            applied: [1.0, 1.0],
+            apply_gain: (dt / d.apply_time_s).min(1.0) as f32,
+            written: [1.0, 1.0],
+            run_updates: 0,
+            status: TrackerStatus::default(),
+        })
+    }
+
+    /// The design.
+    pub fn design(&self) -> &TrackerDesign {
+        &self.design
+    }
+
+    /// The tracked resistance as the drive is given it, Ω.
+    pub fn rs_ohm(&self) -> f64 {
+        self.motor.rs_ohm * self.applied[0] as f64
+    }
+
+    /// The tracked magnet flux as the drive is given it, Wb.
+    pub fn flux_wb(&self) -> f64 {
+        self.motor.flux_wb * self.applied[1] as f64
+    }
+
+    /// The filter's `(R̂/R₀, ψ̂/ψ₀)` (before the low-pass to the drive).
+    pub fn ratios(&self) -> (f32, f32) {
+        (self.x[0], self.x[1])
+    }
+
+    /// The status of the last update.
+    pub fn status(&self) -> TrackerStatus {
+        self.status
+    }
+
+    /// One update on what a step left (every [`TrackerDesign::interval_samples`] samples).
+    /// Returns whether the estimates moved enough since the last write for
+    /// [`Tracker::coefficients`] to be written to the drive.
+    pub fn update(&mut self, input: &TrackerInput) -> bool {
+        self.learn(input);
+        let g = self.apply_gain;
+        self.applied = [
+            self.applied[0] + g * (self.x[0] - self.applied[0]),
+            self.applied[1] + g * (self.x[1] - self.applied[1]),
+        ];
+        libm::fabsf(self.applied[0] - self.written[0]) > WRITE_THRESHOLD
+            || libm::fabsf(self.applied[1] - self.written[1]) > WRITE_THRESHOLD
+    }
+
+    /// The gates and the filter of one update.
+    fn learn(&mut self, input: &TrackerInput) {
+        self.status.learning = false;
+        let w_hat = pu(input.omega);
+        if !input.running {
+            self.run_updates = 0;
+            self.status.frozen = Frozen::NotRunning;
+            return;
+        }
+        if self.run_updates == 0 {
+            (self.w_f, self.dw_f) = (w_hat, 0.0);
+        }
+        self.run_updates = self.run_updates.saturating_add(1);
+        let w_prev = self.w_f;
+        self.w_f += self.filter * (w_hat - self.w_f);
+        self.dw_f += self.filter * ((self.w_f - w_prev) - self.dw_f);
+        // The drift goes on whether or not this update learns (bounded by the prior).
+        self.predict();
+        let (id, iq) = (pu(input.i_dq.d), pu(input.i_dq.q));
+        let frozen = if self.run_updates <= self.settle_updates {
+            Some(Frozen::Settling)
+        } else if libm::fabsf(w_hat) < self.min_speed {
+            Some(Frozen::LowSpeed)
+        } else if input.saturated {
+            Some(Frozen::Saturated)
+        } else if libm::fabsf(self.dw_f) > self.max_dw
+            || libm::fabsf(id - pu(input.i_ref.d)) > self.max_di
+            || libm::fabsf(iq - pu(input.i_ref.q)) > self.max_di
+        {
+            Some(Frozen::Transient)
+        } else {
+            None
+        };
+        if let Some(f) = frozen {
+            self.status.frozen = f;
+            return;
+        }
+        // The voltage acts over the coming period: its frame is at the mid-period angle.
+        let angle = input.theta.0 as f32 * (core::f32::consts::TAU / 4_294_967_296.0)
+            + self.half_turn * w_hat;
+        let (s, c) = libm::sincosf(angle);
+        let (va, vb) = (pu(input.v.alpha), pu(input.v.beta));
+        let (vd, vq) = (va * c + vb * s, vb * c - va * s);
+        let (wd, wq) = (vd + w_hat * self.lq * iq, vq - w_hat * self.ld * id);
+        let r_hat = self.r0 * self.x[0];
+        let (ed, eq) = (wd - r_hat * id, wq - r_hat * iq);
+        let norm = libm::sqrtf(ed * ed + eq * eq);
+        if norm.is_nan() || norm <= 0.0 {
+            return;
+        }
+        let (nd, nq) = (ed / norm, eq / norm);
+        let y = nd * wd + nq * wq;
+        let phi = [
+            self.r0 * (nd * id + nq * iq),
+            self.psi0 * libm::fabsf(w_hat),
+        ];
+        self.correct(y, phi);
+        self.status.learning = true;
+        self.status.learnt = self.status.learnt.saturating_add(1);
+    }
+
+    /// The random walk of one update, the variances held within the prior's.
+    fn predict(&mut self) {
+        let p = &mut self.p;
+        p[0] = (p[0] + self.q[0]).min(self.p_max[0]);
+        p[2] = (p[2] + self.q[2]).min(self.p_max[1]);
+        let c = libm::sqrtf(p[0] * p[2]);
+        p[1] = (p[1] + self.q[1]).max(-c).min(c);
+    }
+
+    /// The Kalman correction on `y = φ · x` (per unit of `V_b`).
+    fn correct(&mut self, y: f32, phi: [f32; 2]) {
+        let p = self.p;
+        let pf = [p[0] * phi[0] + p[1] * phi[1], p[1] * phi[0] + p[2] * phi[1]];
+        let s = phi[0] * pf[0] + phi[1] * pf[1] + self.noise2;
+        let k = [pf[0] / s, pf[1] / s];
+        let nu = y - (phi[0] * self.x[0] + phi[1] * self.x[1]);
+        let mut dx = [k[0] * nu, k[1] * nu];
+        // A step beyond the limit is shortened and the covariance kept: the rest of the
+        // innovation comes back at the next updates.
+        let big = libm::fabsf(dx[0]).max(libm::fabsf(dx[1]));
+        if big > self.max_step {
+            let scale = self.max_step / big;
+            dx = [dx[0] * scale, dx[1] * scale];
+        } else {
+            self.p = [
+                p[0] - k[0] * pf[0],
+                p[1] - k[0] * pf[1],
+                p[2] - k[1] * pf[1],
+            ];
+        }
+        self.x = [
+            (self.x[0] + dx[0]).max(self.lo[0]).min(self.hi[0]),
+            (self.x[1] + dx[1]).max(self.lo[1]).min(self.hi[1]),
+        ];
+        self.status.rs_at_bound = self.x[0] <= self.lo[0] || self.x[0] >= self.hi[0];
+        self.status.flux_at_bound = self.x[1] <= self.lo[1] || self.x[1] >= self.hi[1];
+    }
+
+    /// The drive's coefficients for the current estimates (`f64`, off the control path), and
+    /// marks them written.
+    ///
+    /// Errors: [`ConfigError::Gain`] if a coefficient leaves its format (not with the
+    /// default bounds on a motor whose drive could be built).
+    pub fn coefficients(&mut self) -> Result<ModelCoefficients, ConfigError> {
+        let mut m = self.motor;
+        m.rs_ohm *= self.applied[0] as f64;
+        m.flux_wb *= self.applied[1] as f64;
+        let c = ModelCoefficients {
+            mras: MrasModel::new(&m, &self.base)?,
+            psi: pu_from_f64(m.flux_wb / self.base.flux_wb),
+        };
+        self.written = self.applied;
+        Ok(c)
+    }
+
+    /// Samples `drive`, updates, and writes the new coefficients when they moved: the whole
+    /// background task for a caller that owns the drive (the simulator). On an MCU: take
+    /// [`TrackerInput::sample`] and call [`Drive::set_model`] with the control interrupt
+    /// masked, and [`Tracker::update`] and [`Tracker::coefficients`] in between.
+    pub fn run(&mut self, drive: &mut Drive) {
+        if self.update(&TrackerInput::sample(drive))
+            && let Ok(c) = self.coefficients()
+        {
+            drive.set_model(&c);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,369 @@
+//! The tracker against its f64 reference on synthetic steady states of motor B, and what it
+//! learns where.
+
+extern crate std;
+
+use super::*;
+use crate::fixtures::{inverter_b, motor_b};
+use std::{format, println};
+
+/// The filter of [`Tracker`] in f64, written from docs/tracking.md: the reference the `f32`
+/// one is bounded against.
+struct Reference {
+    r0: f64,
+    psi0: f64,
+    ld: f64,
+    lq: f64,
+    half_turn: f64,
+    min_speed: f64,
+    max_dw: f64,
+    filter: f64,
+    w_f: Option<f64>,
+    dw_f: f64,
+    noise2: f64,
+    q: [f64; 3],
+    p_max: [f64; 2],
+    lo: [f64; 2],
+    hi: [f64; 2],
+    max_step: f64,
+    x: [f64; 2],
+    p: [f64; 3],
+}
+
+impl Reference {
+    fn new(m: &MotorParams, base: &PerUnit, d: &TrackerDesign) -> Self {
+        let dt = d.interval_samples as f64 * base.sample_s;
+        let drift2 = d.drift_k_per_sqrt_s.powi(2) * dt;
+        let ind2 = d.independent_per_sqrt_s.powi(2) * dt;
+        let (gr, gp) = (d.rs_per_k, d.flux_per_k);
+        Self {
+            r0: m.rs_ohm / base.impedance_ohm,
+            psi0: m.flux_wb / base.flux_wb,
+            ld: m.ld_h / base.inductance_h,
+            lq: m.lq_h / base.inductance_h,
+            half_turn: 0.5 * base.omega_e_rad_s * base.sample_s,
+            min_speed: d.min_speed_rad_s / base.omega_e_rad_s,
+            max_dw: d.max_accel_rad_s2 * dt / base.omega_e_rad_s,
+            filter: dt / SPEED_FILTER_S,
+            w_f: None,
+            dw_f: 0.0,
+            noise2: (d.noise_v / base.voltage_v).powi(2),
+            q: [
+                drift2 * gr * gr + ind2,
+                drift2 * gr * gp,
+                drift2 * gp * gp + ind2,
+            ],
+            p_max: [d.rs_sigma.powi(2), d.flux_sigma.powi(2)],
+            lo: [d.rs_range.0, d.flux_range.0],
+            hi: [d.rs_range.1, d.flux_range.1],
+            max_step: d.max_step,
+            x: [1.0, 1.0],
+            p: [d.rs_sigma.powi(2), 0.0, d.flux_sigma.powi(2)],
+        }
+    }
+
+    /// One update on a running drive past its settling time, inside the current gates.
+    fn update(&mut self, s: &Synthetic) {
+        let w_prev = self.w_f.unwrap_or(s.omega);
+        let w_f = w_prev + self.filter * (s.omega - w_prev);
+        self.w_f = Some(w_f);
+        self.dw_f += self.filter * ((w_f - w_prev) - self.dw_f);
+        let p = &mut self.p;
+        p[0] = (p[0] + self.q[0]).min(self.p_max[0]);
+        p[2] = (p[2] + self.q[2]).min(self.p_max[1]);
+        let c = (p[0] * p[2]).sqrt();
+        p[1] = (p[1] + self.q[1]).clamp(-c, c);
+        if s.omega.abs() < self.min_speed || self.dw_f.abs() > self.max_dw {
+            return;
+        }
+        let angle = s.theta_hat + self.half_turn * s.omega;
+        let (sn, cs) = angle.sin_cos();
+        let (vd, vq) = (s.v[0] * cs + s.v[1] * sn, s.v[1] * cs - s.v[0] * sn);
+        let (id, iq) = (s.i[0], s.i[1]);
+        let (wd, wq) = (vd + s.omega * self.lq * iq, vq - s.omega * self.ld * id);
+        let r = self.r0 * self.x[0];
+        let (ed, eq) = (wd - r * id, wq - r * iq);
+        let norm = ed.hypot(eq);
+        let (nd, nq) = (ed / norm, eq / norm);
+        let y = nd * wd + nq * wq;
+        let phi = [self.r0 * (nd * id + nq * iq), self.psi0 * s.omega.abs()];
+        let p = self.p;
+        let pf = [p[0] * phi[0] + p[1] * phi[1], p[1] * phi[0] + p[2] * phi[1]];
+        let sden = phi[0] * pf[0] + phi[1] * pf[1] + self.noise2;
+        let k = [pf[0] / sden, pf[1] / sden];
+        let nu = y - phi[0] * self.x[0] - phi[1] * self.x[1];
+        let mut dx = [k[0] * nu, k[1] * nu];
+        let big = dx[0].abs().max(dx[1].abs());
+        if big > self.max_step {
+            dx = dx.map(|d| d * self.max_step / big);
+        } else {
+            self.p = [
+                p[0] - k[0] * pf[0],
+                p[1] - k[0] * pf[1],
+                p[2] - k[1] * pf[1],
+            ];
+        }
+        for (i, d) in dx.iter().enumerate() {
+            self.x[i] = (self.x[i] + d).clamp(self.lo[i], self.hi[i]);
+        }
+    }
+}
+
+/// A steady state of a motor with resistance `r` and flux `psi` (per unit), the model's
+/// inductances, seen from an estimated frame `delta` behind the rotor.
+struct Synthetic {
+    theta_hat: f64,
+    omega: f64,
+    i: [f64; 2],
+    v: [f64; 2],
+}
+
+#[allow(clippy::too_many_arguments)]
+fn steady(
+    t: &Reference,
+    r: f64,
+    psi: f64,
+    omega: f64,
+    iq: f64,
+    theta: f64,
+    delta: f64,
+    noise: f64,
+) -> Synthetic {
+    let id = 0.0;
+    // The rotor frame: current along q, the voltage of the dq model.
+    let (vd, vq) = (
+        r * id - omega * t.lq * iq + noise,
+        r * iq + omega * t.ld * id + omega * psi - noise,
+    );
+    let mid = theta + t.half_turn * omega;
+    let (s, c) = mid.sin_cos();
+    let v = [vd * c - vq * s, vd * s + vq * c];
+    // The measured current in the estimated frame θ − δ: turned by δ.
+    let (sd, cd) = delta.sin_cos();
+    let i = [id * cd - iq * sd, id * sd + iq * cd];
+    Synthetic {
+        theta_hat: theta - delta,
+        omega,
+        i,
+        v,
+    }
+}
+
+fn input(s: &Synthetic) -> TrackerInput {
+    TrackerInput {
+        running: true,
+        theta: Angle::from_rad(s.theta_hat),
+        omega: pu_from_f64(s.omega),
+        i_dq: Dq {
+            d: pu_from_f64(s.i[0]),
+            q: pu_from_f64(s.i[1]),
+        },
+        i_ref: Dq {
+            d: pu_from_f64(s.i[0]),
+            q: pu_from_f64(s.i[1]),
+        },
+        v: AlphaBeta {
+            alpha: pu_from_f64(s.v[0]),
+            beta: pu_from_f64(s.v[1]),
+        },
+        saturated: false,
+    }
+}
+
+fn setup(d: impl FnOnce(&mut TrackerDesign)) -> (Tracker, Reference) {
+    let m = motor_b();
+    let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
+    let mut design = TrackerDesign::default_for(&base);
+    design.settle_s = 0.0;
+    d(&mut design);
+    let t = Tracker::new(&m, &base, design).unwrap();
+    let r = Reference::new(&m, &base, &design);
+    (t, r)
+}
+
+/// A deterministic noise in ±`amp`.
+fn lcg(state: &mut u64, amp: f64) -> f64 {
+    *state = state
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    amp * (((*state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0)
+}
+
+#[test]
+fn learns_r_and_psi_over_several_operating_points_as_its_f64_reference() {
+    // The plant's R ×1.3 and ψ ×0.85 of the model; the estimated frame on the rotor (on a
+    // salient motor an angle error δ biases y by ω (L_q − L_d) i_q sin δ: docs/tracking.md);
+    // speed and load stepping through six points; noise of 0.5 % of V_b.
+    let (mut t, mut r) = setup(|_| {});
+    let (r_true, psi_true) = (1.3 * r.r0, 0.85 * r.psi0);
+    let mut rng = 1u64;
+    let mut worst = 0.0f64;
+    let mut theta = 0.3;
+    for k in 0..12_000 {
+        let (omega, iq) = [
+            (0.2, 1.0),
+            (0.5, 0.2),
+            (0.8, 1.0),
+            (0.3, 0.5),
+            (0.6, 1.2),
+            (-0.5, -0.8),
+        ][(k / 1000) % 6];
+        theta += 8.0 * 2.0 * r.half_turn * omega;
+        let s = steady(
+            &r,
+            r_true,
+            psi_true,
+            omega,
+            iq,
+            theta,
+            0.0,
+            lcg(&mut rng, 0.005),
+        );
+        t.update(&input(&s));
+        r.update(&s);
+        let (a, b) = t.ratios();
+        worst = worst
+            .max((a as f64 - r.x[0]).abs())
+            .max((b as f64 - r.x[1]).abs());
+    }
+    let (a, b) = t.ratios();
+    println!(
+        "R̂/R₀ {a:.4} (ref {:.4}, true 1.3), ψ̂/ψ₀ {b:.4} (ref {:.4}, true 0.85); largest f32 − f64 {worst:.2e}",
+        r.x[0], r.x[1]
+    );
+    assert!(worst < 2e-3, "{worst}");
+    assert!((a - 1.3).abs() < 0.04, "{a}");
+    assert!((b - 0.85).abs() < 0.01, "{b}");
+    assert!(t.status().learning && !t.status().rs_at_bound && !t.status().flux_at_bound);
+    // What the drive is given follows the filter through its 20 ms low-pass: after 1000
+    // updates (0.57 s) at the last point they agree.
+    let m = motor_b();
+    assert!(
+        (t.rs_ohm() / m.rs_ohm - a as f64).abs() < 5e-3,
+        "{}",
+        t.rs_ohm()
+    );
+    assert!(
+        (t.flux_wb() / m.flux_wb - b as f64).abs() < 2e-3,
+        "{}",
+        t.flux_wb()
+    );
+}
+
+#[test]
+fn at_one_operating_point_a_temperature_rise_moves_r_up_and_psi_down() {
+    // Rated load at half speed; the plant heats: R ×1.4, ψ ×0.9 (copper and magnet warmer by
+    // about 100 K). Only R i_q + ω ψ is observed; the split follows the drift's direction.
+    let (mut t, mut r) = setup(|_| {});
+    let mut theta = 0.0;
+    let mut rng = 7u64;
+    // Half speed without load (ψ alone), then with rated load: the two points the drive sees
+    // before it heats.
+    for k in 0..2000 {
+        theta += 8.0 * 2.0 * r.half_turn * 0.5;
+        let iq = if k < 1000 { 0.05 } else { 1.0 };
+        let s = steady(&r, r.r0, r.psi0, 0.5, iq, theta, 0.0, lcg(&mut rng, 0.002));
+        t.update(&input(&s));
+        r.update(&s);
+    }
+    // Heating over 5.7 s, then 2.3 s at the hot temperature.
+    let n = 10_000;
+    for k in 0..14_000 {
+        let heat = (k as f64 / n as f64).min(1.0);
+        let (rt, pt) = (r.r0 * (1.0 + 0.4 * heat), r.psi0 * (1.0 - 0.1 * heat));
+        theta += 8.0 * 2.0 * r.half_turn * 0.5;
+        let s = steady(&r, rt, pt, 0.5, 1.0, theta, 0.01, lcg(&mut rng, 0.002));
+        t.update(&input(&s));
+        r.update(&s);
+    }
+    let (a, b) = t.ratios();
+    println!(
+        "heated: R̂/R₀ {a:.3} (1.4), ψ̂/ψ₀ {b:.4} (0.9); f64 {:.3} {:.4}",
+        r.x[0], r.x[1]
+    );
+    // The sum is met and the split goes the drift's way, short of the truth: the prior's
+    // remaining uncertainty across the one point takes part of it (the simulated heating run,
+    // after a start that sees more operating points, ends within 0.1 % of ψ: docs/tracking.md).
+    let y = |x: f64, z: f64| x * r.r0 + 0.5 * z * r.psi0;
+    assert!((y(a as f64, b as f64) - y(1.4, 0.9)).abs() < 2e-3);
+    assert!((b - 0.9).abs() < 0.035, "{b}");
+    assert!(a > 1.15, "{a}");
+    assert!((a as f64 - r.x[0]).abs() < 5e-3 && (b as f64 - r.x[1]).abs() < 2e-3);
+}
+
+#[test]
+fn frozen_outside_run_below_the_least_speed_when_saturated_or_in_a_transient() {
+    let (mut t, r) = setup(|d| {
+        d.settle_s = 0.01;
+        d.max_accel_rad_s2 = 0.2 * 2.0 * core::f64::consts::PI * 3000.0 / 60.0 * 3.0;
+    });
+    let s = steady(&r, 1.5 * r.r0, 0.8 * r.psi0, 0.5, 1.0, 0.0, 0.0, 0.0);
+    let fresh = t.ratios();
+    let check = |t: &mut Tracker, i: TrackerInput, why: Frozen| {
+        assert!(!t.update(&i));
+        assert!(!t.status().learning);
+        assert_eq!(t.status().frozen, why);
+        assert_eq!(t.ratios(), fresh);
+    };
+    let mut i = input(&s);
+    i.running = false;
+    check(&mut t, i, Frozen::NotRunning);
+    // 0.01 s at 8 samples of 1/14 kHz: 18 updates settle.
+    for _ in 0..18 {
+        check(&mut t, input(&s), Frozen::Settling);
+    }
+    let slow = steady(&r, 1.5 * r.r0, 0.8 * r.psi0, 0.05, 1.0, 0.0, 0.0, 0.0);
+    check(&mut t, input(&slow), Frozen::LowSpeed);
+    let mut i = input(&s);
+    i.saturated = true;
+    check(&mut t, i, Frozen::Saturated);
+    let mut i = input(&s);
+    i.i_ref.q = pu_from_f64(1.5);
+    check(&mut t, i, Frozen::Transient);
+    // Open once the filtered speed has settled again: it learns, and says when to write (once
+    // the low-pass to the drive has moved by the threshold).
+    let mut first = None;
+    for k in 0..500 {
+        t.update(&input(&s));
+        if t.status().learning {
+            first = Some(k);
+            break;
+        }
+        assert_eq!(t.status().frozen, Frozen::Transient);
+    }
+    println!("learning again after {first:?} updates");
+    assert!(first.is_some_and(|k| k > 5));
+    assert!((0..20).any(|_| t.update(&input(&s))));
+}
+
+#[test]
+fn estimates_stay_within_their_bounds_and_say_so() {
+    // A plant whose flux is half the model's: ψ̂ stops at ×0.6.
+    let (mut t, r) = setup(|_| {});
+    for k in 0..5000 {
+        let s = steady(&r, r.r0, 0.5 * r.psi0, 0.6, 0.2, k as f64 * 0.01, 0.0, 0.0);
+        t.update(&input(&s));
+    }
+    let (_, b) = t.ratios();
+    assert!((b - 0.6).abs() < 1e-6, "{b}");
+    assert!(t.status().flux_at_bound);
+}
+
+#[test]
+fn written_coefficients_of_the_model_are_the_drive_s_own() {
+    // Unmoved estimates give the bits DriveConfig::new gave: writing them is a no-op.
+    let m = motor_b();
+    let inv = inverter_b();
+    let config =
+        crate::drive::DriveConfig::from_params(&m, &inv, 14e3, Default::default()).unwrap();
+    let mut drive = Drive::new(config);
+    let before = format!("{:?}", drive);
+    let mut t = Tracker::new(&m, &config.base, TrackerDesign::default_for(&config.base)).unwrap();
+    drive.set_model(&t.coefficients().unwrap());
+    assert_eq!(format!("{:?}", drive), before);
+    // Bad designs name their field.
+    let mut d = TrackerDesign::default_for(&config.base);
+    d.flux_range = (0.6, 0.9);
+    let e = Tracker::new(&m, &config.base, d).unwrap_err();
+    assert!(format!("{e}").contains("tracking.flux_range.1"), "{e}");
+}
