@@ -454,7 +454,7 @@ impl SpeedRun {
         let th = self.motor.state().theta_e_rad;
         let w = self.motor.omega_e_rad_s();
         let i = park(self.motor.i_alpha_beta(), th);
-        if self.k % self.decimation == 0 {
+        if self.k.is_multiple_of(self.decimation) {
             self.iq_ref = self.speed.step(b.speed_pu(w_ref), b.speed_pu(w)).iq_ref;
         }
         self.k += 1;
