@@ -6,8 +6,8 @@
 //!
 //! The filters are first-order with the pole a power of two (a shift, no product): their time
 //! constants below are rounded to a power of two of their steps (at 14 kHz, 1 ms is 16
-//! samples). The sum check runs every sample; the phase-loss check runs on even samples and
-//! the stuck-channel, stall and loss-of-lock checks on odd ones, so that no sample pays for
+//! samples). The sum check runs every sample; the stuck-channel and phase-loss checks run on
+//! even samples and the stall and loss-of-lock checks on odd ones, so that no sample pays for
 //! all of them (their counts and filters are in steps of two samples: at 14 kHz 2 ms is 16
 //! steps, 10 ms 64).
 //!
@@ -216,10 +216,10 @@ impl Monitor {
         // even samples, stall and loss of lock on odd ones (their counts and filters are in
         // steps of two samples).
         if odd {
-            if let Some(f) = self.check_stuck(c, &ph, speed) {
-                return Some(f);
-            }
             return self.check_motion(c, s, speed, e);
+        }
+        if let Some(f) = self.check_stuck(c, &ph, speed) {
+            return Some(f);
         }
         // Phase loss: one phase carries under 3/64 (4.7 %) of the current's power (a third
         // when balanced) while the rotor turns fast enough for the filter to average a period's
@@ -256,7 +256,7 @@ impl Monitor {
         None
     }
 
-    /// Stuck channel (odd samples): the same bits for 50 ms while the rotor turns and other
+    /// Stuck channel (even samples): the same bits for 50 ms while the rotor turns and other
     /// phases change (compared with the reading two samples before).
     #[inline(always)]
     fn check_stuck(&mut self, c: &MonitorConfig, ph: &[Pu; 3], speed: Pu) -> Option<Fault> {
