@@ -5,6 +5,9 @@
 //! - `cargo xtask figures`: regenerates the paper figures under `docs/figures/`.
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 //! - `cargo xtask sweep [N]`: N random healthy scenarios (default 200), none may fault.
+//! - `cargo xtask family [N] [--seed S] [--check] [--write]`: the drive with its defaults on
+//!   N random motors (default 40); `--check` fails below the bars, `--write` rewrites the
+//!   section of `docs/PERFORMANCE.md`.
 //! - `cargo xtask robustness`: prints the parameter-error table of `docs/PERFORMANCE.md`.
 
 mod accuracy;
@@ -12,6 +15,7 @@ mod board;
 mod cffi;
 mod drive_motor_b;
 mod examples;
+mod family;
 mod observers_motor_a;
 mod pil;
 mod plant_speed;
@@ -43,11 +47,14 @@ fn main() -> Result<()> {
                 .unwrap_or(200);
             sweep::run(n)
         }
+        "family" => family::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "robustness" => {
             print!("{}", drive_motor_b::robustness_section()?);
             Ok(())
         }
-        _ => bail!("usage: cargo xtask perf | figures | examples | robustness | sweep [N]"),
+        _ => bail!(
+            "usage: cargo xtask perf | figures | examples | robustness | sweep [N] | family [N] [--seed S] [--check] [--write]"
+        ),
     }
 }
 
@@ -66,6 +73,8 @@ fn perf() -> Result<()> {
     doc.push_str(&drive_motor_b::section()?);
     eprintln!("robustness to parameter errors ...");
     doc.push_str(&drive_motor_b::robustness_section()?);
+    eprintln!("the drive on a random family of motors ...");
+    doc.push_str(&family::section(family::DOC_MOTORS, family::DEFAULT_SEED)?.0);
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");
