@@ -236,7 +236,7 @@ impl Drive {
         }
         let setpoint = match self.state {
             DriveState::Ipd => return self.ipd_step(i, input.vdc),
-            DriveState::Align => self.align(),
+            DriveState::Align => self.align(i.beta),
             DriveState::OpenLoop => match self.open_loop(&estimate) {
                 Ok(setpoint) => setpoint,
                 Err(fault) => return self.trip(fault),
@@ -314,10 +314,11 @@ impl Drive {
         }
     }
 
-    /// Alignment: a d-axis current along α; at its end the rotor is at `θ = 0`.
+    /// Alignment: a d-axis current along α, the β winding shorted (`startup`); at its end the
+    /// rotor is at `θ = 0`.
     #[inline(always)]
-    fn align(&mut self) -> Setpoint {
-        let (theta, i_ref) = self.open_loop.align_frame(&self.config);
+    fn align(&mut self, i_beta: Pu) -> Setpoint {
+        let (theta, i_ref) = self.open_loop.align_frame(&self.config, i_beta);
         if self.open_loop.align_done(&self.config) {
             self.state = self.rotor_found(Angle::ZERO);
             self.telemetry.estimate = self.estimator.estimate();

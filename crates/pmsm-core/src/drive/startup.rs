@@ -24,7 +24,13 @@
 //! # Alignment
 //!
 //! The d current along `θ = 0` ramps up over the first half of the alignment time and holds
-//! over the second, so the rotor creeps into place instead of swinging through it.
+//! over the second. Nothing in a current loop damps the rotor's swing about `θ = 0` (a heavy
+//! rotor released at 120° still swings by ±90° after 0.5 s, and the estimator then starts on a
+//! rotor that is neither there nor at rest), so the q axis is not regulated: its reference is
+//! the measured `i_β`, the q error is zero, its PI (reset, without speed feed-forward at
+//! `ω = 0`) puts out zero volts, and the β winding is shorted through the inverter. The swing's
+//! EMF `ω ψ cos θ` then drives `i_β = −ω ψ cos θ / R`, whose torque brakes the rotor with the
+//! electrical damping `1.5 p² ψ²/R` (docs/identification.md, the same held-voltage argument).
 
 use super::Fault;
 use super::config::DriveConfig;
@@ -53,9 +59,10 @@ impl OpenLoop {
         Self::default()
     }
 
-    /// The alignment's frame (θ = 0) and current reference `(I, 0)`, ramped over the first
-    /// half of the alignment; counts the sample.
-    pub fn align_frame(&mut self, c: &DriveConfig) -> (Angle, Dq) {
+    /// The alignment's frame (θ = 0) and current reference `(I, i_β)`, `I` ramped over the
+    /// first half of the alignment, `i_β` the measured current (zero q voltage: the module
+    /// docs); counts the sample.
+    pub fn align_frame(&mut self, c: &DriveConfig, i_beta: Pu) -> (Angle, Dq) {
         self.count = self.count.saturating_add(1);
         let half = (c.open_loop.align_samples / 2).max(1);
         let i = if self.count >= half {
@@ -67,7 +74,7 @@ impl OpenLoop {
                 .unwrap_or(0);
             Pu::from_bits(bits as i32)
         };
-        (Angle::ZERO, Dq { d: i, q: Pu::ZERO })
+        (Angle::ZERO, Dq { d: i, q: i_beta })
     }
 
     /// The alignment has lasted its time.
