@@ -5,6 +5,9 @@
 //! - `cargo xtask figures`: regenerates the paper figures under `docs/figures/`.
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 //! - `cargo xtask sweep [N]`: N random healthy scenarios (default 200), none may fault.
+//! - `cargo xtask family [N] [--seed S] [--check] [--write]`: the drive with its defaults on
+//!   N random motors (default 40); `--check` fails below the bars, `--write` rewrites the
+//!   section of `docs/PERFORMANCE.md`.
 //! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
 //!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
@@ -15,6 +18,7 @@ mod board;
 mod cffi;
 mod drive_motor_b;
 mod examples;
+mod family;
 mod map;
 mod observers_motor_a;
 mod pil;
@@ -49,6 +53,7 @@ fn main() -> Result<()> {
             sweep::run(n)
         }
         "map" => map::main(&std::env::args().skip(2).collect::<Vec<_>>()),
+        "family" => family::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "robustness" => {
             let cell: Vec<f64> = std::env::args()
                 .skip(2)
@@ -84,7 +89,7 @@ fn main() -> Result<()> {
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | plant-speed | sweep [N] | map"
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | plant-speed | sweep [N] | map | family [N] [--seed S] [--check] [--write]"
         ),
     }
 }
@@ -106,6 +111,8 @@ fn perf() -> Result<()> {
     doc.push_str(&robustness::section()?);
     // The operating map is `cargo xtask map`'s (a minute more): kept as it is.
     doc.push_str(&map::kept_section());
+    eprintln!("the drive on a random family of motors ...");
+    doc.push_str(&family::section(family::DOC_MOTORS, family::DEFAULT_SEED)?.0);
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");

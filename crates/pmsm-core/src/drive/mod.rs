@@ -320,13 +320,13 @@ impl Drive {
         self.slot = (self.slot + 1) & LAST_SLOT;
         let i = clarke(input.i_abc);
         let estimate = self.estimate(i);
-        let omega_ref = self.run_speed_ref();
+        let omega_ref = self.run_speed_ref_step(&estimate);
         if let Some(fault) = self.supervise(input, &estimate, omega_ref) {
             return self.trip(fault);
         }
         let setpoint = match self.state {
             DriveState::Ipd => return self.ipd_step(i, input.vdc),
-            DriveState::Align => self.align(),
+            DriveState::Align => self.align(i.beta),
             DriveState::OpenLoop => match self.open_loop(&estimate) {
                 Ok(setpoint) => setpoint,
                 Err(fault) => return self.trip(fault),
@@ -408,10 +408,11 @@ impl Drive {
         }
     }
 
-    /// Alignment: a d-axis current along α; at its end the rotor is at `θ = 0`.
+    /// Alignment: a d-axis current along α, the β winding shorted (`startup`); at its end the
+    /// rotor is at `θ = 0`.
     #[inline(always)]
-    fn align(&mut self) -> Setpoint {
-        let (theta, i_ref) = self.open_loop.align_frame(&self.config);
+    fn align(&mut self, i_beta: Pu) -> Setpoint {
+        let (theta, i_ref) = self.open_loop.align_frame(&self.config, i_beta);
         if self.open_loop.align_done(&self.config) {
             self.state = self.rotor_found(Angle::ZERO);
             self.telemetry.estimate = self.estimator.estimate();
@@ -429,6 +430,9 @@ impl Drive {
     #[inline(always)]
     fn open_loop(&mut self, estimate: &Estimate) -> Result<Setpoint, Fault> {
         let (theta, omega, i_ref) = self.open_loop.advance(&self.config);
+        if let Some((theta, omega)) = self.open_loop.restart_angle(&self.config) {
+            self.estimator.reset(theta, omega);
+        }
         if self.open_loop.at_handover(&self.config) {
             let iq = self.open_loop.handover(estimate, &self.config)?;
             self.speed_filtered = estimate.omega;
@@ -445,6 +449,42 @@ impl Drive {
             i_ref,
             frame: None,
         })
+    }
+
+    /// [`Drive::run_speed_ref`] for this step; with a back-EMF estimator in the closed loop,
+    /// the reference one way and the estimated speed the other, down to 1.25 times the
+    /// handover speed, the drive goes back to the open loop to pass through zero (`startup`,
+    /// reversal; the state's match then runs its first sample). The current-model MRAS's path
+    /// is [`Drive::run_speed_ref`]'s.
+    #[inline(always)]
+    fn run_speed_ref_step(&mut self, estimate: &Estimate) -> Pu {
+        let omega_ref = self.run_speed_ref();
+        if self.estimator.kind().needs_open_loop_start()
+            && self.state == DriveState::Run
+            && (omega_ref.to_bits() ^ estimate.omega.to_bits()) < 0
+        {
+            self.reverse_open_loop(omega_ref, estimate);
+        }
+        omega_ref
+    }
+
+    /// The reversal of [`Drive::run_speed_ref_step`], out of line. (A rotor that a load
+    /// drives the other way fails that reversal's handover check.)
+    #[cold]
+    #[inline(never)]
+    fn reverse_open_loop(&mut self, omega_ref: Pu, estimate: &Estimate) {
+        let h = self.config.open_loop.handover_speed;
+        if estimate.omega.saturating_abs() > h.saturating_add(h >> 2) {
+            return;
+        }
+        self.open_loop = OpenLoop::reverse(
+            estimate.theta,
+            estimate.omega,
+            self.iq_ref,
+            omega_ref < Pu::ZERO,
+            &self.config,
+        );
+        self.state = DriveState::OpenLoop;
     }
 
     /// The closed loop: the speed loop sets `i_q*` in the estimated frame. The outer loops

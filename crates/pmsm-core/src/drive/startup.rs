@@ -21,10 +21,29 @@
 //! with a named fault rather than closing the loop on a wrong angle. The speed loop starts
 //! from the torque current the rotor was getting, `I sin(−δ̂)`, so the handover is bumpless.
 //!
+//! # Reversal
+//!
+//! A back-EMF estimator sees nothing near standstill, and driven through zero speed in the
+//! closed loop (slowly under load) it can come out locked on the mirror solution: the estimate
+//! turning the way the reference asks, the rotor the other way, no fault (`cargo xtask family`
+//! found it on most surface motors). So when the closed loop's reference is in one direction
+//! and the estimated speed, in the other, has come down to the handover speed, the drive goes
+//! back to the open-loop current vector from the estimated state ([`OpenLoop::reverse`]): the
+//! imposed frame starts at the estimated speed, turned from the estimated rotor angle so that
+//! the current keeps the torque's sign, decelerates through zero at the start's acceleration
+//! (where the estimator restarts at the frame's angle less that turn, [`OpenLoop::restart_angle`])
+//! and hands over in the new direction with the same check as at the start.
+//!
 //! # Alignment
 //!
 //! The d current along `θ = 0` ramps up over the first half of the alignment time and holds
-//! over the second, so the rotor creeps into place instead of swinging through it.
+//! over the second. Nothing in a current loop damps the rotor's swing about `θ = 0` (a heavy
+//! rotor released at 120° still swings by ±90° after 0.5 s, and the estimator then starts on a
+//! rotor that is neither there nor at rest), so the q axis is not regulated: its reference is
+//! the measured `i_β`, the q error is zero, its PI (reset, without speed feed-forward at
+//! `ω = 0`) puts out zero volts, and the β winding is shorted through the inverter. The swing's
+//! EMF `ω ψ cos θ` then drives `i_β = −ω ψ cos θ / R`, whose torque brakes the rotor with the
+//! electrical damping `1.5 p² ψ²/R` (docs/identification.md, the same held-voltage argument).
 
 use super::Fault;
 use super::config::DriveConfig;
@@ -45,6 +64,11 @@ pub(crate) struct OpenLoop {
     omega: Pu,
     reverse: bool,
     count: u32,
+    /// A reversal: the rotor's angle behind the imposed frame when it began, kept until the
+    /// frame passes through zero speed (then the estimator restarts there).
+    reversal_lag: Option<Angle>,
+    /// The open loop is a reversal from the closed loop.
+    reversal: bool,
 }
 
 impl OpenLoop {
@@ -53,9 +77,10 @@ impl OpenLoop {
         Self::default()
     }
 
-    /// The alignment's frame (θ = 0) and current reference `(I, 0)`, ramped over the first
-    /// half of the alignment; counts the sample.
-    pub fn align_frame(&mut self, c: &DriveConfig) -> (Angle, Dq) {
+    /// The alignment's frame (θ = 0) and current reference `(I, i_β)`, `I` ramped over the
+    /// first half of the alignment, `i_β` the measured current (zero q voltage: the module
+    /// docs); counts the sample.
+    pub fn align_frame(&mut self, c: &DriveConfig, i_beta: Pu) -> (Angle, Dq) {
         self.count = self.count.saturating_add(1);
         let half = (c.open_loop.align_samples / 2).max(1);
         let i = if self.count >= half {
@@ -67,7 +92,7 @@ impl OpenLoop {
                 .unwrap_or(0);
             Pu::from_bits(bits as i32)
         };
-        (Angle::ZERO, Dq { d: i, q: Pu::ZERO })
+        (Angle::ZERO, Dq { d: i, q: i_beta })
     }
 
     /// The alignment has lasted its time.
@@ -82,6 +107,55 @@ impl OpenLoop {
             omega: Pu::ZERO,
             reverse,
             count: 0,
+            reversal_lag: None,
+            reversal: false,
+        }
+    }
+
+    /// The open-loop reversal from the closed loop (module docs): the imposed frame at the
+    /// estimated speed `omega`, turned from the estimated angle `theta` by
+    /// `atan2(i_q, I)` so that the vector `(I, 0)` pulls the way the speed loop's `i_q` did, and
+    /// accelerating towards `reverse`.
+    pub fn reverse(theta: Angle, omega: Pu, iq: Pu, reverse: bool, c: &DriveConfig) -> Self {
+        let turn = crate::cordic::polar(c.open_loop.current, iq).angle;
+        Self {
+            theta: theta + turn,
+            omega,
+            reverse,
+            count: 0,
+            reversal_lag: Some(turn),
+            reversal: true,
+        }
+    }
+
+    /// In a reversal, once the imposed frame has come through zero speed to half the handover
+    /// speed in the new direction: the angle the estimator restarts from (at zero speed), the rotor behind the
+    /// frame by the lag it had when the reversal began. Near zero speed a back-EMF estimator
+    /// knows nothing, and restarted there it takes up the new direction as at the start
+    /// instead of keeping what it drifted to (the mirror solution). With it the speed to
+    /// restart from: the frame's, at least one LSB in the new direction (the estimators take
+    /// their direction from its sign). Once per reversal.
+    pub fn restart_angle(&mut self, c: &DriveConfig) -> Option<(Angle, Pu)> {
+        // Half the handover speed into the new direction: the rotor, which lags the frame's
+        // deceleration, has come through zero too.
+        let half = Pu::from_bits(c.open_loop.handover_speed.to_bits() >> 1);
+        let through = if self.reverse {
+            self.omega <= half.saturating_neg()
+        } else {
+            self.omega >= half
+        };
+        match self.reversal_lag {
+            Some(lag) if through => {
+                self.reversal_lag = None;
+                let lsb = Pu::from_bits(1);
+                let omega = if self.reverse {
+                    self.omega.min(lsb.saturating_neg())
+                } else {
+                    self.omega.max(lsb)
+                };
+                Some((self.theta - lag, omega))
+            }
+            _ => None,
         }
     }
 
@@ -106,9 +180,14 @@ impl OpenLoop {
         )
     }
 
-    /// The imposed frame has reached the handover speed.
+    /// The imposed frame has reached the handover speed in its direction.
     pub fn at_handover(&self, c: &DriveConfig) -> bool {
-        self.omega.saturating_abs() >= c.open_loop.handover_speed
+        let h = c.open_loop.handover_speed;
+        if self.reverse {
+            self.omega <= h.saturating_neg()
+        } else {
+            self.omega >= h
+        }
     }
 
     /// Checks the estimate against the imposed frame; on success the torque current the rotor
@@ -129,6 +208,11 @@ impl OpenLoop {
         };
         let speed_ok = forward_speed >= crate::num::mul(tolerance, self.omega.saturating_abs());
         if !(angle_ok && speed_ok) {
+            // A reversal whose rotor still turns the old way at the handover was held there by
+            // its load: named as such, as the closed loop's check would.
+            if self.reversal && forward_speed < Pu::ZERO {
+                return Err(Fault::DrivenBackwards);
+            }
             return Err(Fault::Handover(delta, est.omega));
         }
         // The current (I, 0) at θ_ol seen from the rotor at θ_ol + δ: q component I sin(−δ),

@@ -132,7 +132,8 @@ pub struct IpdConfig {
     i_limit: Pu,
     /// Peak below which a short pulse is "no current" (a quarter of the design).
     i_short_min: Pu,
-    /// `3 min_saliency / 2`: fault when `|(X, Y)| < this · I_0`, with `I_0` the sum/3.
+    /// `min_saliency / 2`: fault when `|(X, Y)| = (3/2) ΔI < this · (I_1 + I_2 + I_3)`, i.e.
+    /// `ΔI/I_0 < min_saliency` (the sum is `3 I_0`).
     saliency_k: Gain,
     /// `min_polarity`: fault when `|I_4 − I_5| < this · (I_4 + I_5)/2`.
     polarity_k: Gain,
@@ -225,7 +226,7 @@ impl IpdConfig {
             v_p: pu_from_f64(design.voltage_fraction),
             i_limit: pu_from_f64(design.current_limit_pu),
             i_short_min: pu_from_f64(0.25 * design.short_current_pu),
-            saliency_k: gain("ipd.min_saliency", 1.5 * design.min_saliency)?,
+            saliency_k: gain("ipd.min_saliency", 0.5 * design.min_saliency)?,
             polarity_k: gain("ipd.min_polarity", design.min_polarity)?,
             inverse_saliency: motor.ld_h > motor.lq_h,
             svpwm: SvpwmConfig::default(),
