@@ -25,11 +25,11 @@
 //!
 //! # Discretisation and cost
 //!
-//! The drive runs its outer loops in slots (docs/drive.md, "outer loops"): the speed loop on
-//! even samples, and here one update on each odd sample, over a cycle of eight: the MTPA
+//! The drive runs its slower work in slots (docs/drive.md, "outer loops"): here one update on
+//! each odd sample, over a cycle of eight: the MTPA
 //! current in slot 1, the integrator in slots 3 and 7, the `i_q` limit in slot 5 (the MTPA
 //! current and the limit every `8 T_s`, the integrator every `T = 4 T_s`), so that no sample
-//! pays for more than one outer update. Neither square root is taken: both are tracked by one
+//! pays for more than one of them. Neither square root is taken: both are tracked by one
 //! iteration per update whose fixed point is the root (a square root costs ~60 instructions,
 //! and the configuration must stay a few words for the 16 KiB of the smallest target). MTPA:
 //! `f = i_q² − i_d² + 2a i_d` vanishes on the law and grows with `i_d`, so

@@ -487,10 +487,9 @@ impl Drive {
         self.state = DriveState::OpenLoop;
     }
 
-    /// The closed loop: the speed loop sets `i_q*` in the estimated frame. The outer loops
-    /// take turns over eight samples (docs/drive.md, "outer loops"): the speed loop on even
-    /// slots (every 2 samples by default, its decimation), the d-axis reference's updates on
-    /// odd ones; the references hold in between.
+    /// The closed loop: the speed loop sets `i_q*` in the estimated frame (every sample by
+    /// default, or on even slots: its decimation), the d-axis reference's updates take the odd
+    /// slots of eight (docs/drive.md, "outer loops"); the references hold in between.
     #[inline(always)]
     fn speed_loop(&mut self, omega_ref: Pu, estimate: &Estimate) -> Setpoint {
         let c = &self.config;
@@ -750,8 +749,8 @@ impl Drive {
     }
 }
 
-/// The last of the eight outer-loop slots (they count modulo 8): the speed loop on even slots
-/// (every 2 or 4 samples, or on every sample), the d-axis reference's updates on odd ones.
+/// The last of the eight outer-loop slots (they count modulo 8): the d-axis reference's
+/// updates on odd ones, the speed loop on every sample or (decimated) on even ones.
 const LAST_SLOT: u8 = 7;
 
 /// What the current loops track at one sample: the frame they run in and the reference.
