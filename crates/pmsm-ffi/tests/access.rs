@@ -4,9 +4,9 @@
 #![allow(unsafe_code)] // calling the extern "C" functions
 
 mod common;
-use common::{init, storage};
+use common::{init, step_row, storage};
 
-use common::scenario::{self, CMD_CLEAR_FAULT, CMD_START, CMD_STOP, FAULT_STEP, Word};
+use common::scenario::{self, FAULT_STEP, Word};
 use core::ffi::CStr;
 use core::ptr::null_mut;
 use pmsm_core::Angle;
@@ -129,28 +129,8 @@ fn replay_until(
     let mut s = storage();
     let d = init(&mut s, &scenario::config_c()).expect("init");
     for row in rows.iter().take(end) {
-        let cmd = row[Word::Cmd as usize];
-        // SAFETY: `d` is a live handle; the structs are valid.
-        unsafe {
-            if cmd & CMD_STOP != 0 {
-                pmsm_stop(d);
-            }
-            if cmd & CMD_CLEAR_FAULT != 0 {
-                pmsm_clear_fault(d);
-            }
-            if cmd & CMD_START != 0 {
-                pmsm_start(d);
-            }
-            pmsm_set_speed_ref(d, row[Word::SpeedRef as usize]);
-            let input = pmsm_input_t {
-                i_a: row[Word::Ia as usize],
-                i_b: row[Word::Ib as usize],
-                i_c: row[Word::Ic as usize],
-                vdc: row[Word::Vdc as usize],
-            };
-            let mut out = pmsm_output_t::default();
-            assert_eq!(pmsm_step(d, &input, &mut out), pmsm_status_t::PMSM_OK);
-        }
+        // SAFETY: `d` is a live handle.
+        unsafe { step_row(d, row) };
     }
     (s, d)
 }

@@ -4,9 +4,9 @@
 #![allow(unsafe_code)] // calling the extern "C" functions
 
 mod common;
-use common::{init, storage};
+use common::{init, step_row, storage};
 
-use common::scenario::{self, CMD_CLEAR_FAULT, CMD_START, CMD_STOP, WORDS, Word};
+use common::scenario::{self, WORDS, Word};
 use core::ffi::{CStr, c_void};
 use core::ptr::{null, null_mut};
 use pmsm_ffi::*;
@@ -28,30 +28,9 @@ fn replay(rows: &[[i32; WORDS]]) -> Option<(usize, [i32; WORDS])> {
     let mut s = storage();
     let d = init(&mut s, &scenario::config_c()).expect("init");
     for (k, row) in rows.iter().enumerate() {
-        let cmd = row[Word::Cmd as usize];
         // SAFETY: `d` is a live handle; the structs are valid.
         let got = unsafe {
-            if cmd & CMD_STOP != 0 {
-                pmsm_stop(d);
-            }
-            if cmd & CMD_CLEAR_FAULT != 0 {
-                pmsm_clear_fault(d);
-            }
-            if cmd & CMD_START != 0 {
-                pmsm_start(d);
-            }
-            assert_eq!(
-                pmsm_set_speed_ref(d, row[Word::SpeedRef as usize]),
-                pmsm_status_t::PMSM_OK
-            );
-            let input = pmsm_input_t {
-                i_a: row[Word::Ia as usize],
-                i_b: row[Word::Ib as usize],
-                i_c: row[Word::Ic as usize],
-                vdc: row[Word::Vdc as usize],
-            };
-            let mut out = pmsm_output_t::default();
-            assert_eq!(pmsm_step(d, &input, &mut out), pmsm_status_t::PMSM_OK);
+            let out = step_row(d, row);
             let mut st = pmsm_state_info_t::default();
             assert_eq!(pmsm_get_state(d, &mut st), pmsm_status_t::PMSM_OK);
             let mut e = pmsm_estimate_t::default();

@@ -4,9 +4,9 @@
 #![allow(unsafe_code)] // calling the extern "C" functions
 
 mod common;
-use common::storage;
+use common::{step_row, storage};
 
-use common::scenario::{self, CMD_CLEAR_FAULT, CMD_START, CMD_STOP, WORDS, Word};
+use common::scenario::{self, WORDS, Word};
 use core::ptr::{null, null_mut};
 use pmsm_ffi::*;
 
@@ -78,27 +78,9 @@ fn a_loaded_image_replays_the_rust_drive_bit_for_bit() {
     let d = load(&mut s, &img).expect("load");
     let mut differing = 0usize;
     for row in &rows {
-        let cmd = row[Word::Cmd as usize];
         // SAFETY: live handle, valid structs.
         let got = unsafe {
-            if cmd & CMD_STOP != 0 {
-                pmsm_stop(d);
-            }
-            if cmd & CMD_CLEAR_FAULT != 0 {
-                pmsm_clear_fault(d);
-            }
-            if cmd & CMD_START != 0 {
-                pmsm_start(d);
-            }
-            pmsm_set_speed_ref(d, row[Word::SpeedRef as usize]);
-            let input = pmsm_input_t {
-                i_a: row[Word::Ia as usize],
-                i_b: row[Word::Ib as usize],
-                i_c: row[Word::Ic as usize],
-                vdc: row[Word::Vdc as usize],
-            };
-            let mut out = pmsm_output_t::default();
-            assert_eq!(pmsm_step(d, &input, &mut out), pmsm_status_t::PMSM_OK);
+            let out = step_row(d, row);
             let mut e = pmsm_estimate_t::default();
             pmsm_get_estimate(d, &mut e);
             [
