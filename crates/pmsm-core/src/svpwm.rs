@@ -213,7 +213,12 @@ impl SvpwmConfig {
         cache: &mut BusReciprocal,
     ) -> SvpwmOutput {
         if vdc <= self.vdc_min {
-            return SvpwmOutput::BUS_LOW;
+            return SvpwmOutput {
+                duties: Duties::HALF,
+                v: AlphaBeta::default(),
+                saturated: true,
+                bus_low: true,
+            };
         }
         overmodulate(v, vdc, cache.get(vdc, self), self.rail_q30)
     }
@@ -228,7 +233,12 @@ impl SvpwmConfig {
         cache: &mut BusReciprocal,
     ) -> SvpwmOutput {
         if vdc <= self.vdc_min {
-            return SvpwmOutput::BUS_LOW;
+            return SvpwmOutput {
+                duties: Duties::HALF,
+                v: AlphaBeta::default(),
+                saturated: true,
+                bus_low: true,
+            };
         }
         let bus = cache.get(vdc, self);
         let (v, saturated) = limit(v, bus.v_max);
@@ -549,19 +559,6 @@ pub struct SvpwmOutput {
     pub saturated: bool,
     /// The bus is at or below `vdc_min`: duties ½.
     pub bus_low: bool,
-}
-
-impl SvpwmOutput {
-    /// Both modulators' output on a bus at or below `vdc_min`: duties ½, no voltage.
-    const BUS_LOW: Self = Self {
-        duties: Duties::HALF,
-        v: AlphaBeta {
-            alpha: Pu::ZERO,
-            beta: Pu::ZERO,
-        },
-        saturated: true,
-        bus_low: true,
-    };
 }
 
 #[cfg(test)]
