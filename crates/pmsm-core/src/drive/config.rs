@@ -157,9 +157,13 @@ pub struct DriveDesign {
     /// Speed loop.
     pub speed: SpeedDesign,
     /// Bandwidth of the first-order filter on the estimated speed that the speed loop uses,
-    /// rad/s; `None` for none. Default: five times the default speed-loop bandwidth for the
-    /// back-EMF estimators (their speed carries the dead time's 6th-harmonic ripple), none for
-    /// the current-model MRAS.
+    /// rad/s, its time constant rounded to a power of two of samples (the filter is a shift);
+    /// `None` for none. Default: five times the default speed-loop bandwidth for the back-EMF
+    /// estimators (their speed carries the dead time's 6th-harmonic ripple), three times for
+    /// the current-model MRAS (docs/drive.md, "speed filter": its proportional adaptation
+    /// passes every voltage error the model sees into the speed, and a speed loop whose gain
+    /// grows with the inertia turned those steps into a limit cycle through the current
+    /// limit).
     pub speed_filter_rad_s: Option<f64>,
     /// Dead-time compensation ([`DeadTimeMode::Off`] disables it).
     pub deadtime: DeadTimeDesign,
@@ -213,9 +217,14 @@ impl DriveDesign {
                 }
                 d
             },
-            speed_filter_rad_s: estimator
-                .needs_open_loop_start()
-                .then(|| 5.0 * crate::control::speed::DEFAULT_BANDWIDTH_TS / base.sample_s),
+            speed_filter_rad_s: Some(
+                if estimator.needs_open_loop_start() {
+                    5.0
+                } else {
+                    3.0
+                } * crate::control::speed::DEFAULT_BANDWIDTH_TS
+                    / base.sample_s,
+            ),
             deadtime: DeadTimeDesign::default_for(motor, inverter),
             ipd: IpdDesign::default(),
             startup: StartupMode::Auto,
@@ -272,10 +281,15 @@ pub struct DriveConfig {
     /// The speed loop runs in the slots `k` with `k & speed_mask == 0` (mask 0, 1 or 3: every
     /// 1, 2 or 4 samples, [`SpeedDesign::decimation`]).
     pub(crate) speed_mask: u8,
-    /// `log2` of the decimation: the speed loop sees the mean of its period's speeds.
-    pub(crate) speed_shift: u32,
-    /// Pole of the speed filter, `1 − exp(−ω_f T_s)`; `None`: no filter.
-    pub(crate) speed_filter: Option<crate::num::Coef<30>>,
+    /// The speed filter's pole as a shift, `y += (x − y)·2^−k`: `k = round(log2(1/(ω_f T_s)))`
+    /// in 0..=20 (its time constant `2^k` samples, longer than any decimation, so a
+    /// decimated loop sees the mean of its period); 0 passes the speed through.
+    pub(crate) speed_filter_shift: u32,
+    /// The closed current loop's lag as a shift, `k = round(log2(1/(ω_c T_s)))` (0..=20): the
+    /// dead-time compensation's signs follow the reference through it (the current the loop
+    /// will carry). 0 (the reference itself) when overmodulating: beyond the circle the loops
+    /// are voltage-limited and the current does not follow their first-order response.
+    pub(crate) deadtime_lag_shift: u32,
     pub(crate) deadtime: DeadTimeConfig,
     pub(crate) svpwm: SvpwmConfig,
     pub(crate) ipd: IpdConfig,
@@ -401,10 +415,10 @@ impl DriveConfig {
         in_range("open_loop.align_time_s", ol.align_time_s, 0.0, 100.0)?;
         // The drive runs the speed loop on its even slots (every 2 or 4 samples), or on every
         // sample.
-        let (speed_mask, speed_shift) = match design.speed.decimation {
-            1 => (0, 0),
-            2 => (1, 1),
-            4 => (3, 2),
+        let speed_mask = match design.speed.decimation {
+            1 => 0,
+            2 => 1,
+            4 => 3,
             d => {
                 return Err(ConfigError::Param(ParamError {
                     key: "speed.decimation",
@@ -438,19 +452,17 @@ impl DriveConfig {
             })?,
             speed: SpeedConfig::new(motor, &base, design.speed)?,
             speed_mask,
-            speed_shift,
-            speed_filter: match design.speed_filter_rad_s {
-                None => None,
+            deadtime_lag_shift: if design.overmodulation {
+                0
+            } else {
+                libm::round(libm::log2(1.0 / (design.current.bandwidth_rad_s * ts)))
+                    .clamp(0.0, 20.0) as u32
+            },
+            speed_filter_shift: match design.speed_filter_rad_s {
+                None => 0,
                 Some(w) => {
                     let w = in_range("speed_filter_rad_s", w, 1e-3, 2.0 / ts)?;
-                    Some(crate::num::Coef::new(1.0 - libm::exp(-w * ts)).ok_or(
-                        ConfigError::Gain {
-                            key: "speed_filter_rad_s",
-                            value: w,
-                            min: 1e-3,
-                            max: 2.0 / ts,
-                        },
-                    )?)
+                    libm::round(libm::log2(1.0 / (w * ts))).clamp(0.0, 20.0) as u32
                 }
             },
             deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,

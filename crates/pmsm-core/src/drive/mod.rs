@@ -44,7 +44,7 @@ use crate::control::speed::SpeedController;
 use crate::deadtime::{CurrentSource, DeadTimeBus};
 use crate::frames::{AlphaBeta, Dq, clarke, inverse_park, park};
 use crate::ipd::{Ipd, IpdResult};
-use crate::num::{Pu, Unit, mul_unit};
+use crate::num::{Pu, Unit, follow, mul_unit};
 use crate::observer::{AnyEstimator, Estimate, Estimator, Frame, ObserverInput};
 use crate::svpwm::{BusReciprocal, Duties, SvpwmOutput};
 use startup::OpenLoop;
@@ -60,13 +60,13 @@ pub struct Drive {
     ipd: Ipd,
     open_loop: OpenLoop,
     speed_ref: Pu,
-    /// Filtered estimated speed for the speed loop.
+    /// Filtered estimated speed for the speed loop (its time constant longer than the loop's
+    /// period: a decimated loop sees the period's mean, not one sample at a fixed phase of what
+    /// its own step excites, which biased the speed by 2 % at no load).
     speed_filtered: Pu,
-    /// Sum of the filtered speed over the speed loop's period, each term scaled by
-    /// `1/decimation` (bits shifted right): the speed loop sees the period's mean, not one
-    /// sample of it (a sample at a fixed phase of what the loop's own step excites biased
-    /// the speed by 2 % at no load).
-    speed_sum: Pu,
+    /// The q-axis current the closed current loop is expected to carry: its reference through
+    /// a first-order lag of the loop's time constant; the dead-time signs follow it.
+    i_q_expected: Pu,
     /// Voltage applied over the current period, as the estimator should see it.
     v_est: AlphaBeta,
     /// Voltages modulated but not yet applied (the PWM update delay), newest first.
@@ -106,7 +106,7 @@ impl Drive {
             state: DriveState::Idle,
             speed_ref: Pu::ZERO,
             speed_filtered: Pu::ZERO,
-            speed_sum: Pu::ZERO,
+            i_q_expected: Pu::ZERO,
             v_est: AlphaBeta::default(),
             v_line: Default::default(),
             telemetry: Telemetry::default(),
@@ -245,7 +245,8 @@ impl Drive {
         // The first sample of the closed loop is slot 0: it runs the speed loop, on that
         // sample's speed alone.
         self.slot = LAST_SLOT;
-        self.speed_sum = Pu::ZERO;
+        self.speed_filtered = Pu::ZERO;
+        self.i_q_expected = Pu::ZERO;
         if self.estimator.kind().needs_open_loop_start() {
             self.open_loop = OpenLoop::start(theta, self.speed_ref < Pu::ZERO);
             DriveState::OpenLoop
@@ -349,13 +350,11 @@ impl Drive {
         // The estimator always sees the period that just ended.
         let estimate = self.estimator.update(&ObserverInput { i, v: self.v_est });
         self.telemetry.estimate = estimate;
-        self.speed_filtered = match self.config.speed_filter {
-            Some(pole) => {
-                let delta = estimate.omega.saturating_sub(self.speed_filtered);
-                self.speed_filtered.saturating_add(pole.apply(delta))
-            }
-            None => estimate.omega,
-        };
+        self.speed_filtered = follow(
+            self.speed_filtered,
+            estimate.omega,
+            self.config.speed_filter_shift,
+        );
         estimate
     }
 
@@ -440,7 +439,6 @@ impl Drive {
             self.iq_ref = iq;
             self.flux.reset(&self.config.flux);
             self.slot = LAST_SLOT;
-            self.speed_sum = Pu::ZERO;
             self.state = DriveState::Run;
         }
         Ok(Setpoint {
@@ -493,12 +491,8 @@ impl Drive {
     #[inline(always)]
     fn speed_loop(&mut self, omega_ref: Pu, estimate: &Estimate) -> Setpoint {
         let c = &self.config;
-        self.speed_sum = self.speed_sum.saturating_add(Pu::from_bits(
-            self.speed_filtered.to_bits() >> c.speed_shift,
-        ));
         if self.slot & c.speed_mask == 0 {
-            self.iq_ref = self.speed.step(omega_ref, self.speed_sum).iq_ref;
-            self.speed_sum = Pu::ZERO;
+            self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         }
         let i_ref = if c.flux.enabled() {
             if self.slot & 1 != 0 {
@@ -702,6 +696,17 @@ impl Drive {
                 deadtime.error_vector_abc_cached(input.i_abc, input.vdc, &mut self.deadtime_bus)
             }
             CurrentSource::Reference => {
+                // The current the loop will carry, not the reference itself: the q reference
+                // through the closed current loop's lag (docs/drive.md, "dead-time signs"). A
+                // speed loop's reference crossing zero faster than the current flipped the
+                // signs early, and the estimator saw twice the dead-time voltage wrong. The d
+                // reference (outer loops, alignment, open loop) moves slowly: taken as it is.
+                self.i_q_expected =
+                    follow(self.i_q_expected, i_ref.q, self.config.deadtime_lag_shift);
+                let i_ref = Dq {
+                    d: i_ref.d,
+                    q: self.i_q_expected,
+                };
                 // In Run the reference is on q alone: two products instead of four.
                 let i_ref_ab = if i_ref.d == Pu::ZERO {
                     AlphaBeta {

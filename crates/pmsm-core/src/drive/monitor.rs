@@ -16,14 +16,14 @@
 //! | current sensor (sum) | `|i_a + i_b + i_c|` filtered over 1 ms above 0.15 `I_b` | 1–3 ms |
 //! | current sensor (stuck) | a phase reading the same bits for 50 ms while the rotor turns and another phase changes | 50 ms |
 //! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (5 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) through a quarter turn, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `0.5/τ` (`τ` the filter's time constant; 110 rad/s electrical at 5 ms) for `2τ`, at any load | 10–30 ms at 800 r/min on motor B, no load (under load the loss-of-lock check is often first) |
-//! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed below half the reference for 150 ms | 150 ms |
+//! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed, along the reference's direction, below half the reference for 150 ms | 150 ms |
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
 //! | driven backwards | the speed loop at 90 % of its limit in the reference's direction, the estimated speed the other way beyond 0.1 pu and above a ceiling that starts at its value and falls at 1/16 of the motor's largest deceleration, for 20 ms | 20–40 ms |
 //! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu` (default 1.0 pu), from 100 ms after entering the closed loop, in steady state (40 ms at a constant reference with the estimate within 0.02 pu of it throughout, until the reference changes) | 10–20 ms |
 
 use super::Fault;
 use crate::frames::Abc;
-use crate::num::{Pu, pu_from_f64};
+use crate::num::{Pu, follow, pu_from_f64};
 use crate::observer::{AnyEstimator, Estimator};
 
 /// Thresholds and filter poles, per unit and in samples (`settle_samples`, `ms1`) or in steps
@@ -294,9 +294,16 @@ impl Monitor {
         speed: Pu,
         e: &AnyEstimator,
     ) -> Option<Fault> {
-        // Stall: at the current limit and far below the reference for 150 ms.
+        // Stall: at the current limit and far below the reference for 150 ms. "Below" along the
+        // reference's direction: an estimate turning the other way (a lock lost through zero
+        // speed under load) is slow too, not fast.
         let speed_ref = s.omega_ref.saturating_abs();
-        let slow = speed < speed_ref >> 1;
+        let along = if s.omega_ref < Pu::ZERO {
+            s.omega.saturating_neg()
+        } else {
+            s.omega
+        };
+        let slow = along < speed_ref >> 1;
         let limited = s.iq_ref.saturating_abs() >= c.stall_current;
         self.stall = if s.running && limited && slow && speed_ref > c.turning {
             self.stall.saturating_add(1)
@@ -388,13 +395,6 @@ impl Monitor {
 fn phase_power(i: Pu) -> u32 {
     let a = (i.to_bits().unsigned_abs() >> 12).min(1 << 15);
     a * a
-}
-
-/// One step of the first-order filter `y += (x − y)·2^−k` (arithmetic shift: rounds toward
-/// −∞, so a filter of non-negative inputs settles within `2^k` LSB below its input).
-#[inline(always)]
-fn follow(y: Pu, x: Pu, k: u32) -> Pu {
-    y.saturating_add(Pu::from_bits(x.saturating_sub(y).to_bits() >> k))
 }
 
 #[cfg(test)]

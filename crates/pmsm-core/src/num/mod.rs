@@ -415,6 +415,14 @@ impl<const F: u32> Coef<F> {
     }
 }
 
+/// One step of the first-order filter `y += (x − y)·2^−k`, the pole a power of two (a shift,
+/// no product). The arithmetic shift rounds toward −∞: the filter settles within `2^k` LSB
+/// below a constant input. `k = 0` passes the input through.
+#[inline(always)]
+pub(crate) fn follow(y: Pu, x: Pu, k: u32) -> Pu {
+    y.saturating_add(Pu::from_bits(x.saturating_sub(y).to_bits() >> k))
+}
+
 /// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).
 ///
 /// For configuration and host code; the control path never touches floats.
