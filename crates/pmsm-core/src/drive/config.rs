@@ -8,7 +8,7 @@ use crate::control::speed::{SpeedConfig, SpeedDesign};
 use crate::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode};
 use crate::error::ConfigError;
 use crate::ipd::{IpdConfig, IpdDesign};
-use crate::num::{Pu, pu_from_f64};
+use crate::num::{Pu, follow_shift, pu_from_f64};
 #[cfg_attr(feature = "select-estimators", allow(unused_imports))]
 use crate::observer::{
     AoConfig, EstimatorConfig, EstimatorKind, MrasCurrentConfig, MrasCurrentGains, MrasEmfConfig,
@@ -286,7 +286,7 @@ pub struct DriveConfig {
     /// decimated loop sees the mean of its period); 0 passes the speed through.
     pub(crate) speed_filter_shift: u32,
     /// The closed current loop's lag as a shift, `k = round(log2(1/(ω_c T_s)))` (0..=20): the
-    /// dead-time compensation's signs follow the reference through it (the current the loop
+    /// dead-time compensation's signs follow the q reference through it (the current the loop
     /// will carry). 0 (the reference itself) when overmodulating: beyond the circle the loops
     /// are voltage-limited and the current does not follow their first-order response.
     pub(crate) deadtime_lag_shift: u32,
@@ -455,14 +455,13 @@ impl DriveConfig {
             deadtime_lag_shift: if design.overmodulation {
                 0
             } else {
-                libm::round(libm::log2(1.0 / (design.current.bandwidth_rad_s * ts)))
-                    .clamp(0.0, 20.0) as u32
+                follow_shift(1.0 / (design.current.bandwidth_rad_s * ts)).unwrap_or(0)
             },
             speed_filter_shift: match design.speed_filter_rad_s {
                 None => 0,
                 Some(w) => {
                     let w = in_range("speed_filter_rad_s", w, 1e-3, 2.0 / ts)?;
-                    libm::round(libm::log2(1.0 / (w * ts))).clamp(0.0, 20.0) as u32
+                    follow_shift(1.0 / (w * ts)).unwrap_or(0)
                 }
             },
             deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,

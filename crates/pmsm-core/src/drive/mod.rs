@@ -242,8 +242,8 @@ impl Drive {
         self.flux.reset(&self.config.flux);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
         self.iq_ref = Pu::ZERO;
-        // The first sample of the closed loop is slot 0: it runs the speed loop, on that
-        // sample's speed alone.
+        // The first sample of the closed loop is slot 0: it runs the speed loop. The speed
+        // filter starts from the estimator's reset speed, zero.
         self.slot = LAST_SLOT;
         self.speed_filtered = Pu::ZERO;
         self.i_q_expected = Pu::ZERO;

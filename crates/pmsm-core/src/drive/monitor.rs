@@ -23,7 +23,7 @@
 
 use super::Fault;
 use crate::frames::Abc;
-use crate::num::{Pu, follow, pu_from_f64};
+use crate::num::{Pu, follow, follow_shift, pu_from_f64};
 use crate::observer::{AnyEstimator, Estimator};
 
 /// Thresholds and filter poles, per unit and in samples (`settle_samples`, `ms1`) or in steps
@@ -99,12 +99,8 @@ impl MonitorConfig {
         // `Monitor::check`): their periods, counts and time constants are in steps of 2 T_s.
         let ts2 = 2.0 * ts;
         // τ/T to the nearest power of two, 1 to 2²⁰ steps of T.
-        let pole_of = |tau: f64, t: f64| {
-            let k = libm::round(libm::log2(tau / t));
-            k.is_finite().then_some(k.clamp(0.0, 20.0) as u32)
-        };
-        let pole = |tau: f64| pole_of(tau, ts);
-        let pole2 = |tau: f64| pole_of(tau, ts2);
+        let pole = |tau: f64| follow_shift(tau / ts);
+        let pole2 = |tau: f64| follow_shift(tau / ts2);
         Some(Self {
             sum_limit: pu_from_f64(0.15),
             ms1: pole(1e-3)?,

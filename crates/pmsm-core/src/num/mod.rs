@@ -423,6 +423,14 @@ pub(crate) fn follow(y: Pu, x: Pu, k: u32) -> Pu {
     y.saturating_add(Pu::from_bits(x.saturating_sub(y).to_bits() >> k))
 }
 
+/// The shift `k` of [`follow`] for a time constant of `tau_steps` steps: its `2^k` the power of
+/// two nearest in the logarithm (`round(log2 τ)`), within 0..=20; `None` when `tau_steps` is not
+/// a positive finite number.
+pub(crate) fn follow_shift(tau_steps: f64) -> Option<u32> {
+    let k = libm::round(libm::log2(tau_steps));
+    k.is_finite().then_some(k.clamp(0.0, 20.0) as u32)
+}
+
 /// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).
 ///
 /// For configuration and host code; the control path never touches floats.
