@@ -709,37 +709,40 @@ mod tests {
         assert!(hexagon < 0.97 * six_step && hexagon > 0.6, "{hexagon}");
     }
 
+    /// `c` on the input bits: duties in [0, 1] and the commanded vector within `c.v_max` (2 LSB
+    /// and the 1e−8 relative error of the CORDIC magnitude).
+    fn check_modulated(
+        c: &SvpwmConfig,
+        al: i32,
+        be: i32,
+        vdc: i32,
+    ) -> Result<(), proptest::test_runner::TestCaseError> {
+        let v = AlphaBeta {
+            alpha: Pu::from_bits(al),
+            beta: Pu::from_bits(be),
+        };
+        let vdc = Pu::from_bits(vdc);
+        let o = c.modulate(v, vdc);
+        for d in [o.duties.a, o.duties.b, o.duties.c] {
+            prop_assert!(d >= Unit::ZERO && d <= Unit::from_num(1));
+        }
+        let (x, y) = (o.v.alpha.to_bits() as f64, o.v.beta.to_bits() as f64);
+        let vmax = c.v_max(vdc).to_bits() as f64;
+        prop_assert!((x * x + y * y).sqrt() <= vmax * (1.0 + 1e-8) + 2.0);
+        Ok(())
+    }
+
     proptest! {
-        /// Overmodulating, any input: duties in [0, 1], the vector within the vertex `2 v_dc/3`
-        /// (2 LSB).
+        /// Overmodulating, any input: duties in [0, 1], the vector within the vertex `2 v_dc/3`.
         #[test]
         fn overmodulated_duties_always_valid(al in any::<i32>(), be in any::<i32>(), vdc in any::<i32>()) {
-            let c = SvpwmConfig::overmodulating();
-            let v = AlphaBeta { alpha: Pu::from_bits(al), beta: Pu::from_bits(be) };
-            let vdc = Pu::from_bits(vdc);
-            let o = c.modulate(v, vdc);
-            for d in [o.duties.a, o.duties.b, o.duties.c] {
-                prop_assert!(d >= Unit::ZERO && d <= Unit::from_num(1));
-            }
-            let (x, y) = (o.v.alpha.to_bits() as f64, o.v.beta.to_bits() as f64);
-            let vmax = c.v_max(vdc).to_bits() as f64;
-            prop_assert!((x * x + y * y).sqrt() <= vmax * (1.0 + 1e-8) + 2.0);
+            check_modulated(&SvpwmConfig::overmodulating(), al, be, vdc)?;
         }
 
-        /// Any input: duties in [0, 1] and the commanded vector inside the circle (within 2 LSB
-        /// and the 1e−8 relative error of the CORDIC magnitude).
+        /// Any input: duties in [0, 1] and the commanded vector inside the circle.
         #[test]
         fn duties_always_valid(al in any::<i32>(), be in any::<i32>(), vdc in any::<i32>()) {
-            let c = SvpwmConfig::default();
-            let v = AlphaBeta { alpha: Pu::from_bits(al), beta: Pu::from_bits(be) };
-            let vdc = Pu::from_bits(vdc);
-            let o = c.modulate(v, vdc);
-            for d in [o.duties.a, o.duties.b, o.duties.c] {
-                prop_assert!(d >= Unit::ZERO && d <= Unit::from_num(1));
-            }
-            let (x, y) = (o.v.alpha.to_bits() as f64, o.v.beta.to_bits() as f64);
-            let vmax = c.v_max(vdc).to_bits() as f64;
-            prop_assert!((x * x + y * y).sqrt() <= vmax * (1.0 + 1e-8) + 2.0);
+            check_modulated(&SvpwmConfig::default(), al, be, vdc)?;
         }
     }
 }
