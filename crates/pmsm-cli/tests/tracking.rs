@@ -70,8 +70,11 @@ fn a_heating_motor_is_tracked() {
             "{inverter}: {} vs {psi_true}",
             on.2[1]
         );
-        // R̂ moved the right way (the plant's 10.08 Ω), within its bounds.
-        assert!(on.2[0] > 8.5 && on.2[0] <= 14.4, "{inverter}: {}", on.2[0]);
+        // R̂ moved the right way from the model's 7.2 Ω (the plant's 10.08 Ω), within its bounds.
+        // Short of the plant: the start's light-load ramp, which used to show the filter a
+        // second operating point, is now gated out (the inverter's residue there taught it a
+        // biased R, docs/tracking.md), so the split at this one point rests on the drift model.
+        assert!(on.2[0] > 8.0 && on.2[0] <= 14.4, "{inverter}: {}", on.2[0]);
     }
 }
 

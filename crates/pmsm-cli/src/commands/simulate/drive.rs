@@ -68,7 +68,7 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
     let config = DriveConfig::new(&model, &drive_inverter, sample_hz, design)
         .map_err(|e| anyhow!("{shown}: {e}"))?;
     let tracker = if sc.control.tracking {
-        let design = TrackerDesign::default_for(&base);
+        let design = TrackerDesign::for_drive(&config);
         Some(Tracker::new(&model, &base, design).map_err(|e| anyhow!("{shown}: {e}"))?)
     } else {
         None

@@ -20,6 +20,13 @@ struct Reference {
     filter: f64,
     w_f: Option<f64>,
     dw_f: f64,
+    inv_v: f64,
+    band: f64,
+    inv_ratio: f64,
+    motion_pre: f64,
+    i_last: Option<[f64; 2]>,
+    motion: f64,
+    motion_gain: f64,
     noise2: f64,
     q: [f64; 3],
     p_max: [f64; 2],
@@ -47,6 +54,15 @@ impl Reference {
             filter: dt / SPEED_FILTER_S,
             w_f: None,
             dw_f: 0.0,
+            inv_v: d.inverter_error_v / base.voltage_v,
+            band: d
+                .current_band_a
+                .map_or(f64::INFINITY, |b| b / base.current_a),
+            inv_ratio: d.max_inverter_ratio,
+            motion_pre: (dt / d.motion_filter_s).min(1.0),
+            i_last: None,
+            motion: 0.0,
+            motion_gain: d.transient_weight / (dt * base.omega_e_rad_s),
             noise2: (d.noise_v / base.voltage_v).powi(2),
             q: [
                 drift2 * gr * gr + ind2,
@@ -68,18 +84,31 @@ impl Reference {
         let w_f = w_prev + self.filter * (s.omega - w_prev);
         self.w_f = Some(w_f);
         self.dw_f += self.filter * ((w_f - w_prev) - self.dw_f);
+        let (id, iq) = (s.i[0], s.i[1]);
+        let [id0, iq0] = self.i_last.unwrap_or([id, iq]);
+        let (id1, iq1) = (
+            id0 + self.motion_pre * (id - id0),
+            iq0 + self.motion_pre * (iq - iq0),
+        );
+        self.i_last = Some([id1, iq1]);
+        self.motion +=
+            self.filter * (self.ld * (id1 - id0).abs() + self.lq * (iq1 - iq0).abs() - self.motion);
         let p = &mut self.p;
         p[0] = (p[0] + self.q[0]).min(self.p_max[0]);
         p[2] = (p[2] + self.q[2]).min(self.p_max[1]);
         let c = (p[0] * p[2]).sqrt();
         p[1] = (p[1] + self.q[1]).clamp(-c, c);
-        if s.omega.abs() < self.min_speed || self.dw_f.abs() > self.max_dw {
+        let i_abs = id.hypot(iq);
+        let residual = self.inv_v * (self.band / i_abs).min(1.0);
+        if s.omega.abs() < self.min_speed
+            || residual > self.inv_ratio * self.psi0 * s.omega.abs()
+            || self.dw_f.abs() > self.max_dw
+        {
             return;
         }
         let angle = s.theta_hat + self.half_turn * s.omega;
         let (sn, cs) = angle.sin_cos();
         let (vd, vq) = (s.v[0] * cs + s.v[1] * sn, s.v[1] * cs - s.v[0] * sn);
-        let (id, iq) = (s.i[0], s.i[1]);
         let (wd, wq) = (vd + s.omega * self.lq * iq, vq - s.omega * self.ld * id);
         let r = self.r0 * self.x[0];
         let (ed, eq) = (wd - r * id, wq - r * iq);
@@ -89,7 +118,10 @@ impl Reference {
         let phi = [self.r0 * (nd * id + nq * iq), self.psi0 * s.omega.abs()];
         let p = self.p;
         let pf = [p[0] * phi[0] + p[1] * phi[1], p[1] * phi[0] + p[2] * phi[1]];
-        let sden = phi[0] * pf[0] + phi[1] * pf[1] + self.noise2;
+        let sden = phi[0] * pf[0]
+            + phi[1] * pf[1]
+            + self.noise2
+            + (self.motion_gain * self.motion).powi(2);
         let k = [pf[0] / sden, pf[1] / sden];
         let nu = y - phi[0] * self.x[0] - phi[1] * self.x[1];
         let mut dx = [k[0] * nu, k[1] * nu];
@@ -366,4 +398,78 @@ fn written_coefficients_of_the_model_are_the_drive_s_own() {
     d.flux_range = (0.6, 0.9);
     let e = Tracker::new(&m, &config.base, d).unwrap_err();
     assert!(format!("{e}").contains("tracking.flux_range.1"), "{e}");
+}
+
+/// Updates on an exact model whose q current swings (a limit cycle of the loops at 40 Hz
+/// about 0.4 pu) with its `L_q di_q/dt` in the voltage, as the plant has it: the largest
+/// distance of `R̂/R₀`, `ψ̂/ψ₀` from 1 over 0.6 s.
+fn drift_in_a_swinging_current(weight: f64) -> f64 {
+    let (mut t, r) = setup(|d| d.transient_weight = weight);
+    let m = motor_b();
+    let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
+    let dt = 8.0 / 14e3;
+    let (omega, f_hz) = (0.3, 40.0);
+    let mut worst = 0.0f64;
+    for k in 0..1050 {
+        let ts = k as f64 * dt;
+        let ph = core::f64::consts::TAU * f_hz * ts;
+        let iq = 0.4 + 0.35 * ph.sin();
+        let diq = 0.35 * core::f64::consts::TAU * f_hz * ph.cos() / base.omega_e_rad_s;
+        let theta = omega * base.omega_e_rad_s * ts;
+        let mut s = steady(&r, r.r0, r.psi0, omega, iq, theta, 0.0, 0.0);
+        // The inductive voltage of the swing, along q (turned like the rest into αβ).
+        let mid = theta + r.half_turn * omega;
+        let vq = r.lq * diq;
+        s.v[0] -= vq * mid.sin();
+        s.v[1] += vq * mid.cos();
+        t.update(&input(&s));
+        let (a, b) = t.ratios();
+        worst = worst
+            .max((a as f64 - 1.0).abs())
+            .max((b as f64 - 1.0).abs());
+    }
+    worst
+}
+
+#[test]
+fn a_swinging_current_and_the_inverter_near_zero_current_teach_it_little() {
+    // The swing's L di/dt is not in the model and correlates with the regressor: without its
+    // weight in the noise the estimates wander by 20 %; with the default weight by a third
+    // less (measured 0.207 and 0.139; the weight was chosen on the simulated drive, where it
+    // and the inverter gate took the healthy scenarios of `cargo xtask sweep` that lose the
+    // lock with tracking on from 31 of 200 to none of 500, docs/tracking.md).
+    let (weighted, bare) = (
+        drift_in_a_swinging_current(10.0),
+        drift_in_a_swinging_current(0.0),
+    );
+    println!(
+        "largest drift of an exact model in a swinging current: {weighted:.4} weighted, {bare:.4} not"
+    );
+    assert!(weighted < 0.16, "{weighted}");
+    assert!(weighted < 0.75 * bare, "{bare} vs {weighted}");
+
+    // The inverter gate of a drive's design: motor B at 540 V, 2 µs: V_dead ≈ 15 V.
+    let m = motor_b();
+    let config =
+        crate::drive::DriveConfig::from_params(&m, &inverter_b(), 14e3, Default::default())
+            .unwrap();
+    let mut design = TrackerDesign::for_drive(&config);
+    design.settle_s = 0.0;
+    assert!(
+        (design.inverter_error_v - 15.1).abs() < 0.5,
+        "{}",
+        design.inverter_error_v
+    );
+    let mut t = Tracker::new(&m, &config.base, design).unwrap();
+    let r = Reference::new(&m, &config.base, &design);
+    // At a quarter of ω_b with 0.1 pu of current the residue is half of V_dead, a fifth of the
+    // EMF: frozen. At rated current it is a tenth of that: learning.
+    let light = steady(&r, r.r0, r.psi0, 0.25, 0.1, 0.0, 0.0, 0.0);
+    t.update(&input(&light));
+    assert!(!t.status().learning);
+    assert_eq!(t.status().frozen, Frozen::Inverter);
+    let rated = steady(&r, r.r0, r.psi0, 0.25, 1.0, 0.0, 0.0, 0.0);
+    t.update(&input(&rated));
+    t.update(&input(&rated));
+    assert!(t.status().learning, "{:?}", t.status());
 }
