@@ -19,6 +19,7 @@ mod cffi;
 mod drive_motor_b;
 mod examples;
 mod family;
+mod identify_family;
 mod map;
 mod observers_motor_a;
 mod pil;
@@ -54,6 +55,7 @@ fn main() -> Result<()> {
         }
         "map" => map::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "family" => family::main(&std::env::args().skip(2).collect::<Vec<_>>()),
+        "identify-family" => identify_family::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "robustness" => {
             let cell: Vec<f64> = std::env::args()
                 .skip(2)
@@ -89,7 +91,7 @@ fn main() -> Result<()> {
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | plant-speed | sweep [N] | map | family [N] [--seed S] [--check] [--write]"
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | plant-speed | sweep [N] | map | family [N] [--seed S] [--check] [--write] | identify-family [N] [--seed S]"
         ),
     }
 }
