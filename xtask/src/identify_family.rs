@@ -57,8 +57,14 @@ pub fn main(args: &[String]) -> Result<()> {
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
-            "--seed" => seed = it.next().and_then(|s| s.parse().ok()).unwrap_or(seed),
-            x => n = x.parse()?,
+            "--seed" => match it.next().and_then(|s| s.parse().ok()) {
+                Some(s) => seed = s,
+                None => bail!("--seed needs a number"),
+            },
+            x => match x.parse() {
+                Ok(k) => n = k,
+                Err(_) => bail!("usage: cargo xtask identify-family [N] [--seed S]"),
+            },
         }
     }
     let (motors, _) = family(n, seed);

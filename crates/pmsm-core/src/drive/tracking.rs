@@ -129,8 +129,8 @@ impl TrackerDesign {
     /// entering `Run`; the model's `R` within ±50 %, `ψ` within
     /// ±30 % (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB;
     /// 10 K/√s; 1 % of the base voltage of noise; 1 % per update at most; 20 ms of low-pass
-    /// to the drive; the current's motion (low-passed over 4 ms) weighted 10 times; no inverter gate (see
-    /// [`TrackerDesign::for_drive`]).
+    /// to the drive; the current's motion (low-passed over 4 ms) weighted 10 times; no
+    /// inverter gate (see [`TrackerDesign::for_drive`]).
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
             interval_samples: 8,
@@ -307,6 +307,11 @@ pub struct Tracker {
     status: TrackerStatus,
 }
 
+/// One step of a first-order low-pass: `y + g (x − y)`.
+fn toward(y: f32, x: f32, g: f32) -> f32 {
+    y + g * (x - y)
+}
+
 /// A [`Pu`] as `f32`.
 fn pu(x: Pu) -> f32 {
     x.to_bits() as f32 * (1.0 / (1u32 << PU_FRAC) as f32)
@@ -462,8 +467,8 @@ impl Tracker {
         self.learn(input);
         let g = self.apply_gain;
         self.applied = [
-            self.applied[0] + g * (self.x[0] - self.applied[0]),
-            self.applied[1] + g * (self.x[1] - self.applied[1]),
+            toward(self.applied[0], self.x[0], g),
+            toward(self.applied[1], self.x[1], g),
         ];
         libm::fabsf(self.applied[0] - self.written[0]) > WRITE_THRESHOLD
             || libm::fabsf(self.applied[1] - self.written[1]) > WRITE_THRESHOLD
@@ -485,18 +490,18 @@ impl Tracker {
         }
         self.run_updates = self.run_updates.saturating_add(1);
         let w_prev = self.w_f;
-        self.w_f += self.filter * (w_hat - self.w_f);
-        self.dw_f += self.filter * ((self.w_f - w_prev) - self.dw_f);
+        self.w_f = toward(self.w_f, w_hat, self.filter);
+        self.dw_f = toward(self.dw_f, self.w_f - w_prev, self.filter);
         // The current through a short low-pass first: the sampling noise of a steady current is
         // no motion.
         let pre = self.motion_pre;
         let i_f = [
-            self.i_last[0] + pre * (id - self.i_last[0]),
-            self.i_last[1] + pre * (iq - self.i_last[1]),
+            toward(self.i_last[0], id, pre),
+            toward(self.i_last[1], iq, pre),
         ];
         let step = self.ld * libm::fabsf(i_f[0] - self.i_last[0])
             + self.lq * libm::fabsf(i_f[1] - self.i_last[1]);
-        self.motion += self.filter * (step - self.motion);
+        self.motion = toward(self.motion, step, self.filter);
         self.i_last = i_f;
         // The drift goes on whether or not this update learns (bounded by the prior).
         self.predict();
