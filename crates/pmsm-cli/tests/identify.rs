@@ -190,3 +190,43 @@ fn adc_offsets_and_noise() {
     assert!(e[0].abs() < 0.03 && e[1].abs() < 0.05 && e[2].abs() < 0.05);
     assert!(e[3].abs() < 0.03 && e[4].abs() < 0.15);
 }
+
+/// A heavy 540 V rotor (J = 0.027 kg m², 0.66 Wb, 11 kHz) starting near the unstable side of
+/// α: it swings about α for longer than a level's settling, and still follows the spin's
+/// damper after a window's settling. The routine waits for it (a fixed-time routine stopped at
+/// the resistance step with no current, and with that fixed, read ψ and J 67 % high).
+#[test]
+fn a_heavy_rotor_is_waited_for() {
+    let (p, r, l, psi, j, b) = (3, 8.4689, 48.05e-3, 0.6643, 0.02746, 7.07e-4);
+    let mut params = MotorParams::new(p, r, l, l, psi, j, b);
+    let limit = 4.025;
+    params.rated_current_a = Some(limit / std::f64::consts::SQRT_2);
+    let mut model = MotorModel::new(params);
+    model.saturation = Saturation::Linear;
+    let inverter = InverterParams {
+        vdc_v: 540.0,
+        pwm_hz: 11e3,
+        dead_time_s: 2.06e-6,
+        current_full_scale_a: 2.5 * limit,
+    };
+    let run = identify(&model, &inverter, InverterKind::Switching, limit, 153.7).unwrap();
+    let m = run.identified.motor;
+    let e = [
+        rel(m.rs_ohm, r),
+        rel(m.ld_h, l),
+        rel(m.lq_h, l),
+        rel(m.flux_wb, psi),
+        rel(m.j_kg_m2, j),
+    ];
+    println!(
+        "heavy rotor: R {:+.2} %, Ld {:+.2} %, Lq {:+.2} %, psi {:+.2} %, J {:+.2} % in {:.2} s",
+        100.0 * e[0],
+        100.0 * e[1],
+        100.0 * e[2],
+        100.0 * e[3],
+        100.0 * e[4],
+        run.duration_s
+    );
+    assert!(e[0].abs() < 0.03 && e[1].abs() < 0.05 && e[2].abs() < 0.05);
+    assert!(e[3].abs() < 0.03 && e[4].abs() < 0.15);
+}

@@ -60,6 +60,8 @@ pub struct Identify {
     pub(super) integ: [i64; 2],
     pub(super) saturated: bool,
     pub(super) v_hold: AlphaBeta,
+    /// Σ of the resistance loop's α output over a level's settle, `Pu` bits.
+    pub(super) v_settle: i64,
     pub(super) levels: [LevelSums; 4],
     pub(super) bursts: [BurstSums; 4],
     pub(super) sign: i32,
@@ -112,6 +114,7 @@ impl Identify {
             integ: [0; 2],
             saturated: false,
             v_hold: AlphaBeta::default(),
+            v_settle: 0,
             levels: [LevelSums::default(); 4],
             bursts: [BurstSums::default(); 4],
             sign: 1,
@@ -227,7 +230,7 @@ impl Identify {
         let (ia, ib) = (i.alpha.to_bits(), i.beta.to_bits());
         let mut out_angle = Angle::ZERO;
         let v: AlphaBeta = match self.phase {
-            Phase::Align => self.align_step(ia, ib),
+            Phase::Align => self.align_step(ia),
             Phase::Level(l) => match self.level_step(l, ia, ib) {
                 Ok(v) => v,
                 Err(e) => return self.fail(e),

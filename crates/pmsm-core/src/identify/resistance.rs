@@ -4,7 +4,7 @@
 use super::machine::{Identify, Phase};
 use super::{IdentifyError, Stage};
 use crate::frames::AlphaBeta;
-use crate::num::Pu;
+use crate::num::{Pu, sat_i32};
 
 /// Sums over one level's window, `Pu` bits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -21,18 +21,20 @@ pub(super) struct LevelSums {
 const MAX_RETRIES: u32 = 16;
 
 impl Identify {
-    /// The ramp of the α current up to the first level (the rotor turns onto α).
-    pub(super) fn align_step(&mut self, ia: i32, ib: i32) -> AlphaBeta {
+    /// The ramp of the α current up to the first level (the rotor turns onto α). No β
+    /// voltage here or while a level settles: a rotor still turning drives β current
+    /// through `R`, which brakes it; a β current loop would cancel that damping.
+    pub(super) fn align_step(&mut self, ia: i32) -> AlphaBeta {
         self.i_ref = (self.i_ref + self.ramp_step_bits).min(self.level_bits[0]);
         self.k += 1;
         if self.k >= self.config.n_ramp {
             self.k = 0;
             self.phase = Phase::Level(0);
         }
-        let v = self.pi([self.i_ref - ia, -ib]);
+        let v = self.pi([self.i_ref - ia, 0]);
         AlphaBeta {
             alpha: v.d,
-            beta: v.q,
+            beta: Pu::ZERO,
         }
     }
 
@@ -48,13 +50,17 @@ impl Identify {
         let k = self.k;
         self.k += 1;
         if k < c.n_settle {
-            // β is regulated to zero too: the rotor may still be turning onto α.
-            let v = self.pi([r - ia, -ib]);
+            let v = self.pi([r - ia, 0]);
             let v = AlphaBeta {
                 alpha: v.d,
-                beta: v.q,
+                beta: Pu::ZERO,
             };
-            self.v_hold = v;
+            // The loop's α output, summed over the settle's second half: a rotor still
+            // swinging adds its EMF to any single sample of it, not to the mean.
+            if k == c.n_settle / 2 {
+                self.v_settle = 0;
+            }
+            self.v_settle += v.alpha.to_bits() as i64;
             return Ok(v);
         }
         if k == c.n_settle {
@@ -64,10 +70,11 @@ impl Identify {
             if self.saturated {
                 return Err(IdentifyError::Saturation(Stage::Resistance));
             }
-            // At standstill the β voltage that keeps β current at zero is zero (the phase
-            // currents' signs are symmetric about α); what the loop holds there now only
-            // answers the rotor's motion, and holding it would pull the rotor off α.
-            self.v_hold.beta = Pu::ZERO;
+            let n = (c.n_settle - c.n_settle / 2).max(1) as i64;
+            self.v_hold = AlphaBeta {
+                alpha: Pu::from_bits(sat_i32(self.v_settle / n)),
+                beta: Pu::ZERO,
+            };
         }
         let w0 = c.n_settle + c.n_hold;
         if k >= w0 {
@@ -104,22 +111,26 @@ impl Identify {
         let w0 = c.n_settle + c.n_hold;
         let s = self.levels.get(li).copied().unwrap_or_default();
         let (n, r) = (s.n as i64, r as i64);
-        if 2 * s.i < r * n {
-            return Err(IdentifyError::NoCurrent(Stage::Resistance));
-        }
-        if 100 * (s.first - s.second).abs() > 2 * r * (c.n_window / 2) as i64
-            || 50 * s.beta.abs() > r * n
-        {
-            // Still swinging (the held voltage brakes it through R): measure again,
-            // a bounded number of times.
+        let swinging = 100 * (s.first - s.second).abs() > 2 * r * (c.n_window / 2) as i64
+            || 50 * s.beta.abs() > r * n;
+        // A held voltage taken while the rotor still swung drives another current than the
+        // level's: regulate again and take it anew.
+        let off = 5 * (s.i - r * n).abs() > r * n;
+        if swinging || off {
             if self.retries >= MAX_RETRIES {
-                return Err(IdentifyError::RotorMoved(Stage::Resistance));
+                return Err(if 2 * s.i < r * n {
+                    IdentifyError::NoCurrent(Stage::Resistance)
+                } else {
+                    IdentifyError::RotorMoved(Stage::Resistance)
+                });
             }
             self.retries += 1;
             if let Some(s) = self.levels.get_mut(li) {
                 *s = LevelSums::default();
             }
-            self.k = w0;
+            // Still swinging (the held voltage brakes it through R): measure again.
+            // Off the level: back to the loop.
+            self.k = if off { 0 } else { w0 };
             return Ok(());
         }
         self.k = 0;

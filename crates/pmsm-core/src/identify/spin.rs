@@ -8,6 +8,9 @@ use super::{IdentifyError, Stage};
 use crate::angle::Angle;
 use crate::frames::{AlphaBeta, park};
 
+/// Windows measured again in all while the spin's speed still moves.
+const MAX_SPIN_RETRIES: u32 = 24;
+
 /// Sums over one of the spin's windows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct WindowSums {
@@ -23,6 +26,8 @@ pub(super) struct WindowSums {
     /// Σ of the field's actual step (commanded speed with the damper's correction).
     pub(super) speed_sum: u64,
     pub(super) speed_n: u32,
+    /// Σ of the field's step over the window's first and second half.
+    pub(super) speed_half: [u64; 2],
     /// Σ over the window of `F`, the running Σ of the squared field step, and of the spin's
     /// sample index.
     pub(super) f_sum: i128,
@@ -46,6 +51,7 @@ impl Identify {
         self.phase_q16 = 0;
         self.speed_q16 = 0;
         self.energy = 0;
+        self.retries = 0;
         self.vx_mean = (self.v_hold.alpha.to_bits() as i64) << 12;
         self.hold_integrators(self.v_hold);
     }
@@ -67,14 +73,18 @@ impl Identify {
         // Saturating: a healthy spin is far from the limits (see the module's formats).
         let p = vx.saturating_mul(ix).saturating_add(vy.saturating_mul(iy)) >> 24;
         self.energy = self.energy.saturating_add(p);
-        let w_open = self.segment(seg, [vx, vy], [ix, iy]);
+        let w_open = self.segment(seg, [vx, vy], [ix, iy])?;
         let (step, out_angle) = self.advance_field(vx);
+        let half = self.config.n_window / 2;
         if let Seg::Hold(h) = seg
-            && w_open
+            && let Some(j) = w_open
             && let Some(w) = self.windows.get_mut(h as usize)
         {
             w.speed_sum = w.speed_sum.saturating_add(step);
             w.speed_n += 1;
+            if let Some(x) = w.speed_half.get_mut((j / half.max(1)) as usize) {
+                *x = x.saturating_add(step);
+            }
             w.f_sum = w.f_sum.saturating_add(self.f_energy);
             w.t_sum = w.t_sum.saturating_add(self.spin_n);
         }
@@ -88,8 +98,13 @@ impl Identify {
     }
 
     /// The segment's speed profile and transitions; `v`, `i` the x, y voltage and current
-    /// (`Pu` bits). Returns whether a window is open (summing) this sample.
-    fn segment(&mut self, seg: Seg, v: [i64; 2], i: [i64; 2]) -> bool {
+    /// (`Pu` bits). Returns the window's sample index while one is open (summing).
+    fn segment(
+        &mut self,
+        seg: Seg,
+        v: [i64; 2],
+        i: [i64; 2],
+    ) -> Result<Option<u32>, IdentifyError> {
         let c = self.config;
         let accel = c.accel_q16;
         match seg {
@@ -132,42 +147,68 @@ impl Identify {
                 }
             }
         }
-        false
+        Ok(None)
     }
 
     /// One sample of hold `h` at constant speed: settling, then window `h`'s sums; the
-    /// window's end starts the next segment. Returns whether the window is open.
-    fn hold_sample(&mut self, h: u8, v: [i64; 2], i: [i64; 2]) -> bool {
+    /// window's end starts the next segment, or the window again while the rotor's speed
+    /// still moves. Returns the window's sample index while it is open.
+    fn hold_sample(
+        &mut self,
+        h: u8,
+        v: [i64; 2],
+        i: [i64; 2],
+    ) -> Result<Option<u32>, IdentifyError> {
         let c = self.config;
         let k = self.k;
-        let w_open = k >= c.n_settle;
         self.k += 1;
-        if k >= c.n_settle {
-            let e = self.energy;
-            if let Some(w) = self.windows.get_mut(h as usize) {
-                w.v[0] += v[0];
-                w.v[1] += v[1];
-                w.i[0] += i[0];
-                w.i[1] += i[1];
-                w.c_sum = w.c_sum.saturating_add(e);
-                let (j, half) = (k - c.n_settle, c.n_window / 2);
-                if j < half {
-                    w.c_first = w.c_first.saturating_add(e);
-                } else if j < 2 * half {
-                    w.c_second = w.c_second.saturating_add(e);
-                }
-                w.n += 1;
-            }
-            if k + 1 >= c.n_settle + c.n_window {
-                let next = match h {
-                    0 => Seg::Down,
-                    1 => Seg::Up,
-                    _ => Seg::Stop,
-                };
-                self.next_seg(next);
-            }
+        if k < c.n_settle {
+            return Ok(None);
         }
-        w_open
+        let j = k - c.n_settle;
+        let e = self.energy;
+        if let Some(w) = self.windows.get_mut(h as usize) {
+            w.v[0] += v[0];
+            w.v[1] += v[1];
+            w.i[0] += i[0];
+            w.i[1] += i[1];
+            w.c_sum = w.c_sum.saturating_add(e);
+            let half = c.n_window / 2;
+            if j < half {
+                w.c_first = w.c_first.saturating_add(e);
+            } else if j < 2 * half {
+                w.c_second = w.c_second.saturating_add(e);
+            }
+            w.n += 1;
+        }
+        if k + 1 >= c.n_settle + c.n_window {
+            let [a, b] = self
+                .windows
+                .get(h as usize)
+                .map_or([0, 0], |w| w.speed_half);
+            // A heavy rotor may still follow the damper's correction after the settling:
+            // its field speed then differs between the window's halves by more than the
+            // hunting does. Measure again, a bounded number of times.
+            if 200 * a.abs_diff(b) > a {
+                if self.retries >= MAX_SPIN_RETRIES {
+                    return Err(IdentifyError::RotorMoved(Stage::Flux));
+                }
+                self.retries += 1;
+                if let Some(w) = self.windows.get_mut(h as usize) {
+                    *w = WindowSums::default();
+                }
+                self.k = c.n_settle;
+                // This sample belongs to neither window.
+                return Ok(None);
+            }
+            let next = match h {
+                0 => Seg::Down,
+                1 => Seg::Up,
+                _ => Seg::Stop,
+            };
+            self.next_seg(next);
+        }
+        Ok(Some(j))
     }
 
     /// Turns the field by this sample's step, the commanded speed less the hunting damper's
