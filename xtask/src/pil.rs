@@ -74,5 +74,13 @@ pub fn section() -> String {
             over(&v[3], 4000)
         ));
     }
+    if let Some(v) = table.get("drive_step_flux") {
+        s.push_str(&format!(
+            "The same with MTPA and field weakening on and the speed loop every second sample \
+             (`drive_step_flux`, docs/field-weakening.md \"Cost\"; a report, not a check): \
+             Cortex-M4 {}, Cortex-M0 {} instructions at the worst sample.\n\n",
+            v[1], v[3]
+        ));
+    }
     s
 }

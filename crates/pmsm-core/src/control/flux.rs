@@ -8,7 +8,7 @@
 //! ```
 //!
 //! `|v|` is the vector the modulator made at the last sample, `V_max` the radius of its circle,
-//! `k` the margin ([`VOLTAGE_MARGIN`], 0.97) that keeps the current loops some room to act. When the
+//! `k` the margin ([`VOLTAGE_MARGIN`], 31/32) that keeps the current loops some room to act. When the
 //! vector stays inside `k V_max` the error is positive and `Δ` bleeds back to zero (the MTPA
 //! current); outside it drives `Δ` negative, which lowers the flux `ψ + L_d i_d` and with it
 //! the voltage. `Δ` is clamped so that `i_d*` never goes below `−I_d,lim = −min(I_max, ψ/L_d)`:
@@ -33,14 +33,15 @@
 //! iteration per update whose fixed point is the root (a square root costs ~60 instructions,
 //! and the configuration must stay a few words for the 16 KiB of the smallest target). MTPA:
 //! `f = i_q² − i_d² + 2a i_d` vanishes on the law and grows with `i_d`, so
-//! `i_d ← i_d − g f/(2|a|)` converges to it (pole `1 − g(1 − i_d/a)`, `g` = 0.4). Circle:
-//! `y ← y + g (I_max² − i_d² − y²)/(2 I_max)` converges to `√(I_max² − i_d²)`. Each is three
-//! products; the integrator two squares and the gain, `(k V_max)²` being kept from the last
-//! bus reading.
+//! `i_d ← i_d − g f/(2|a|)` converges to it (pole `1 − g(1 − i_d/a)`, `g` = 51/128). Circle:
+//! `y ← y + g (I_max² − i_d² − y²)/(2 I_max)` converges to `√(I_max² − i_d²)`. Every square is
+//! a 32-bit product of shifted values, and each update has at most one 64-bit product (the
+//! gain): on the Cortex-M0 a 64-bit product is a call of some 25 instructions. The
+//! integrator's margin and gain are shifts, `(k V_max)²` being kept from the last bus reading.
 //!
 //! With `|v| ≈ ω (ψ + L_d i_d)` the loop is `d|v|²/dΔ ≈ 2 |v| ω L_d`, and the gain
 //! `K_fw = ω_fw T / 2` (per unit, `T = 4 T_s`) puts its pole near `ω_fw` where `|v| ω L_d ≈ 1`
-//! (default `ω_fw = 0.02/T_s`, 280 rad/s at 14 kHz, below the current loops' 700 rad/s).
+//! (`K_fw = 5/128`: `ω_fw ≈ 0.02/T_s`, 273 rad/s at 14 kHz, below the current loops' 700 rad/s).
 //!
 //! # Formats
 //!
@@ -49,16 +50,16 @@
 //! | `i_q*`, `i_d*`, `i_d,MTPA`, `Δ`, `I_max`, `−I_d,lim`, `|i_q|` limit | [`Pu`] Q8.24 of `I_b` | `[−I_max, I_max]` |
 //! | `I_max²` | [`Pu`] (pu²) | `I_max` ≤ 11 with MTPA or field weakening on |
 //! | `v`, `V_max` | [`Pu`] of `V_b` | ≤ 2 |
-//! | `|v|²`, `(k V_max)²`, `i_q²`, `i_d²` | Q.48 in `i64`, differences to Q.24 (saturated) | |
-//! | `2a = ψ/(L_q − L_d)` | [`Coef<20>`](Coef) | `|2a| < 2048` (else treated as surface) |
+//! | `|v|²`, `(k V_max)²` | `(v ≫ 11)²` in `i32`: units of 2⁻²⁶ pu² | ≤ 2²⁹ |
+//! | `i_q²`, `i_d²`, `y²` | `(i ≫ s)²` in `i32` (`I_max ≫ s` < 2¹⁵), sums to `Pu` of pu² | < 2³¹ |
+//! | `sgn(2a)`, `2a = ψ/(L_q − L_d)` | `i32` ±1 (0: no MTPA) | `|2a| < 2048` (else treated as surface) |
 //! | `g/(2|a|)`, `g/(2 I_max)` | [`Coef<24>`](Coef) | < 128 |
-//! | `k`, `K_fw` | [`Coef<31>`](Coef) constants | 0.97, 0.02 |
+//! | `k`, `K_fw`, `g` | shifts | 31/32, 5/128, 51/128 |
 
-use super::frac_mul;
 use super::gain_in;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq};
-use crate::num::{Coef, Pu, pu_from_f64, round_shift_sat, sat_i32, wmul};
+use crate::num::{Coef, Pu, pu_from_f64};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
@@ -74,21 +75,18 @@ pub const SPEED_CAP_PER_BASE: f64 = 4.0;
 /// voltage an overmodulating drive can hold, per unit of the linear one.
 pub const SIX_STEP_PER_CIRCLE: f64 = 1.102_657_790_843_584_4;
 
-/// [`VOLTAGE_MARGIN`] in Q1.31.
-const MARGIN_Q31: Coef<31> = Coef::from_bits((VOLTAGE_MARGIN * 2_147_483_648.0) as i32);
-/// [`K_FW`] in Q1.31.
-const K_FW_Q31: Coef<31> = Coef::from_bits((K_FW * 2_147_483_648.0) as i32);
-
 /// Pole of the MTPA and circle iterations per update (`g`, one update every eight samples):
-/// about 1.4 ms to settle at 14 kHz.
-const TRACK_POLE: f64 = 0.4;
+/// about 1.4 ms to settle at 14 kHz. 51/128: `g i_d` is a shift and a 32-bit product.
+const TRACK_POLE: f64 = 0.398_437_5;
 
-/// Fraction `k` of the modulator's circle the field weakening holds the voltage at.
-pub const VOLTAGE_MARGIN: f64 = 0.97;
+/// Fraction `k` of the modulator's circle the field weakening holds the voltage at: 31/32, so
+/// that `k V_max` is a shift and a subtraction.
+pub const VOLTAGE_MARGIN: f64 = 0.968_75;
 
-/// Gain `K_fw` of the field-weakening integrator per update, `ω_fw T/2` with `T = 4 T_s` and
-/// `ω_fw = 0.02/T_s` (280 rad/s at 14 kHz, below the current loops' default 700 rad/s).
-const K_FW: f64 = 0.04;
+/// The voltages' shift before squaring: `|v| ≤ 2` per unit (2²⁵ bits) becomes 2¹⁴, its
+/// square ≤ 2²⁸, so that `|v|²` and `(k V_max)²` are 32-bit products (a 64-bit product is
+/// a call of some 25 instructions on ARMv6-M).
+const V_SHIFT: u32 = 11;
 
 /// How the d-axis reference is made (both off by default: the paper's `i_d = 0`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -108,16 +106,21 @@ impl FluxDesign {
     };
 }
 
-/// Configuration of the [`FluxController`]: eight words, because the smallest target (the
+/// Configuration of the [`FluxController`]: ten words, because the smallest target (the
 /// micro:bit's 16 KiB) holds the drive on its stack several times.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FluxConfig {
-    /// `2a = ψ/(L_q − L_d)`, per unit of current; zero without MTPA.
-    two_a: Coef<20>,
+    /// `sgn(2a)`: 1 for `L_q > L_d`, −1 for `L_q < L_d`, 0 without MTPA.
+    sign_a: i32,
     /// MTPA iteration gain `g/(2|a|)`; zero: `i_d,MTPA = 0` (surface motor or MTPA off).
     k_mtpa: Coef<24>,
-    /// `I_max²`, per unit (`I_max` ≤ 11).
-    i_max_sq: Pu,
+    /// The currents' shift before squaring, `s`: `I_max` in [`Pu`] bits shifted right by
+    /// `s` is below 2¹⁵, so that its square is a 32-bit product, in units of 2^(2s − 48) pu².
+    i_shift: u32,
+    /// `24 − 2s`: a square's shift right to [`Pu`] bits of pu² (left when negative).
+    sq_shift: i32,
+    /// `I_max²` in [`Pu`] bits (`I_max` ≤ 11: below 2³¹).
+    i_max_sq: i32,
     /// `g/(2 I_max)`, the circle iteration's gain.
     k_circle: Coef<24>,
     /// `I_max`.
@@ -189,15 +192,20 @@ impl FluxConfig {
         let r = motor.rs_ohm / base.impedance_ohm;
         let psi = motor.flux_wb / base.flux_wb;
         let salient = design.mtpa && libm::fabs(lq - ld) > SALIENCY_MIN * ld;
-        // 2|a| beyond Coef<20>'s 2048 (saliency below 1/1000 per unit): no MTPA either.
-        let two_a = if salient {
-            Coef::new(psi / (lq - ld))
+        // The squares' format: a current x as (x ≫ s) with I_max ≫ s < 2¹⁵, so that its
+        // square is a 32-bit product.
+        let i_max_bits = pu_from_f64(i_max).to_bits().max(1) as u32;
+        // I_max ≤ 11 pu < 2²⁸ bits: s ≤ 13.
+        let i_shift = (32 - i_max_bits.leading_zeros()).saturating_sub(15);
+        // 2|a| beyond 2048 (saliency below 1/1000 per unit): no MTPA either.
+        let two_a = psi / (lq - ld);
+        let (sign_a, k_mtpa) = if salient && libm::fabs(two_a) < 2048.0 {
+            match Coef::new(TRACK_POLE / libm::fabs(two_a)) {
+                Some(k) => (if two_a > 0.0 { 1 } else { -1 }, k),
+                None => (0, Coef::ZERO),
+            }
         } else {
-            None
-        };
-        let k_mtpa = match two_a {
-            Some(t) => Coef::new(TRACK_POLE / libm::fabs(t.to_f64())).unwrap_or(Coef::ZERO),
-            None => Coef::ZERO,
+            (0, Coef::ZERO)
         };
         let id_lim = if design.field_weakening {
             i_max.min(psi / ld)
@@ -214,9 +222,11 @@ impl FluxConfig {
             SPEED_CAP_PER_BASE,
         );
         Ok(Self {
-            two_a: two_a.unwrap_or(Coef::ZERO),
+            sign_a,
             k_mtpa,
-            i_max_sq: pu_from_f64(i_max * i_max),
+            i_shift,
+            sq_shift: 24 - 2 * i_shift as i32,
+            i_max_sq: pu_from_f64(i_max * i_max).to_bits(),
             k_circle: Coef::new(TRACK_POLE / (2.0 * i_max)).unwrap_or(Coef::ZERO),
             i_max: pu_from_f64(i_max),
             id_min: pu_from_f64(-id_lim),
@@ -232,7 +242,7 @@ impl FluxConfig {
     /// Whether the controller does anything (MTPA on an interior motor, or field weakening).
     #[inline(always)]
     pub fn enabled(&self) -> bool {
-        self.k_mtpa.bits() != 0 || self.id_min != Pu::ZERO
+        self.sign_a != 0 || self.id_min != Pu::ZERO
     }
 
     /// Largest speed reference accepted, electrical, per unit (`Pu::MAX` with field
@@ -240,6 +250,17 @@ impl FluxConfig {
     /// `k V_max` at the nominal bus, capped at [`SPEED_CAP_PER_BASE`] times base speed.
     pub fn max_speed(&self) -> Pu {
         self.speed_max
+    }
+
+    /// A sum of the currents' squares (each `≤ I_max²`, the sum at most twice that) in the
+    /// squares' format, as [`Pu`] bits of pu² (saturated).
+    #[inline(always)]
+    fn squares_to_pu(&self, x: i32) -> i32 {
+        if self.sq_shift >= 0 {
+            x >> self.sq_shift
+        } else {
+            x.saturating_mul(1 << (-self.sq_shift).min(8))
+        }
     }
 }
 
@@ -252,9 +273,12 @@ pub struct FluxController {
     delta: Pu,
     /// `|i_q*|` limit.
     iq_max: Pu,
-    /// The circle's radius of the last update and `(k V_max)²` from it (Q.48).
+    /// `i_d* = i_d,MTPA + Δ` after the last update.
+    id_ref: Pu,
+    /// The circle's radius of the last update and `(k V_max)²` from it (`V_max ≫ 11`
+    /// squared).
     v_max: Pu,
-    lim_sq: i64,
+    lim_sq: i32,
 }
 
 impl FluxController {
@@ -271,10 +295,10 @@ impl FluxController {
         self.delta
     }
 
-    /// `i_d* = i_d,MTPA + Δ`.
+    /// `i_d* = i_d,MTPA + Δ` as the last update left it.
     #[inline(always)]
-    fn id(&self) -> Pu {
-        self.id_mtpa.saturating_add(self.delta)
+    pub fn id_ref(&self) -> Pu {
+        self.id_ref
     }
 
     /// The MTPA current as tracked.
@@ -292,7 +316,7 @@ impl FluxController {
     #[inline(always)]
     pub fn reference(&self, iq: Pu) -> Dq {
         Dq {
-            d: self.id(),
+            d: self.id_ref,
             q: iq.min(self.iq_max).max(self.iq_max.saturating_neg()),
         }
     }
@@ -303,67 +327,94 @@ impl FluxController {
     #[inline(never)]
     pub fn update_mtpa(&mut self, c: &FluxConfig, iq: Pu) {
         // MTPA: f = i_q² − i_d² + 2a i_d is zero on the law and grows with i_d (for
-        // i_d < a): one step of i_d ← i_d − g f/(2|a|) per update (Q.48 to Q.24).
-        let (q, d) = (iq.to_bits(), self.id_mtpa.to_bits());
-        let f = wmul(q, q) - wmul(d, d) + (c.two_a.wide(d) << 4);
-        let f = sat_i32(f >> 24);
-        let id_mtpa = self
-            .id_mtpa
-            .saturating_sub(Pu::from_bits(c.k_mtpa.apply_bits(f)));
+        // i_d < a): one step of i_d ← i_d − g f/(2|a|) per update, that is
+        // i_d ← i_d − g sgn(a) i_d − k (i_q² − i_d²) with k = g/(2|a|), the squares 32-bit
+        // products in the configuration's format.
+        // |i_q| and |i_d,MTPA| ≤ I_max: below 2¹⁵ shifted, each square below 2³⁰.
+        let m = c.i_max.to_bits() >> c.i_shift;
+        let q = (iq.to_bits() >> c.i_shift).max(-m).min(m);
+        let d = self.id_mtpa.to_bits() >> c.i_shift;
+        let x = c.squares_to_pu(q * q - d * d);
+        let id = self.id_mtpa.to_bits();
+        // g · i_d with g = 51/128 (rounded toward −∞; 2⁻¹⁷ pu).
+        let g_d = (id >> 7) * 51;
+        let step = c.k_mtpa.apply_bits(x).saturating_add(c.sign_a * g_d);
+        let id_mtpa = self.id_mtpa.saturating_sub(Pu::from_bits(step));
         // Within [−I_max, 0] for L_q > L_d (a > 0), [0, I_max] otherwise.
-        self.id_mtpa = if c.two_a.bits() >= 0 {
+        self.id_mtpa = if c.sign_a >= 0 {
             id_mtpa.min(Pu::ZERO).max(c.i_max.saturating_neg())
         } else {
             id_mtpa.min(c.i_max).max(Pu::ZERO)
         };
+        self.id_ref = self.id_mtpa.saturating_add(self.delta);
     }
 
     /// One update of the field-weakening integrator from the vector `v` the modulator made
     /// at the last sample and its circle's radius `v_max` (the drive's slots 3 and 7).
     #[inline(never)]
     pub fn update_fw(&mut self, c: &FluxConfig, v: &AlphaBeta, v_max: Pu) {
-        // Field weakening: (k V_max)² − |v|², Q.48 to Q.24; (k V_max)² is recomputed
-        // only when the bus reading changes.
+        // Field weakening: (k V_max)² − |v|² with k = 31/32, each voltage shifted right by 11
+        // (≤ 2¹⁴ for ≤ 2 pu) and squared in 32 bits: the error in units of 2⁻²⁶ pu²;
+        // (k V_max)² is recomputed only when the bus reading changes.
         if v_max != self.v_max {
-            let lim = frac_mul(MARGIN_Q31, v_max.to_bits());
+            let m = v_max.to_bits().clamp(0, 2 << 24);
+            let lim = (m - (m >> 5)) >> V_SHIFT;
             self.v_max = v_max;
-            self.lim_sq = wmul(lim, lim);
+            self.lim_sq = lim * lim;
         }
-        let v2 =
-            wmul(v.alpha.to_bits(), v.alpha.to_bits()) + wmul(v.beta.to_bits(), v.beta.to_bits());
-        let err = sat_i32((self.lim_sq - v2) >> 24);
-        let step = round_shift_sat(K_FW_Q31.wide(err), 31);
+        let lim = 1 << (25 - V_SHIFT);
+        let a = (v.alpha.to_bits() >> V_SHIFT).clamp(-lim, lim);
+        let b = (v.beta.to_bits() >> V_SHIFT).clamp(-lim, lim);
+        // Each square ≤ 2²⁸: the difference fits.
+        let err = self.lim_sq - (a * a + b * b);
+        // K_fw = 5/128 per Pu bit of pu² (docs/field-weakening.md), per unit of this error
+        // (four of those) 5/512: two shifts.
+        let step = (err >> 7) + (err >> 9);
         // Anti-windup: Δ within [−I_d,lim − i_d,MTPA, 0].
         let lo = c.id_min.saturating_sub(self.id_mtpa).min(Pu::ZERO);
         self.delta = Pu::from_bits(self.delta.to_bits().saturating_add(step))
             .min(Pu::ZERO)
             .max(lo);
+        self.id_ref = self.id_mtpa.saturating_add(self.delta);
     }
 
-    /// One update of the `|i_q*|` limit (the drive's slot 5).
+    /// One update of the `|i_q*|` limit (the drive's slot 5); returns it.
     #[inline(never)]
-    pub fn update_circle(&mut self, c: &FluxConfig) {
+    pub fn update_circle(&mut self, c: &FluxConfig) -> Pu {
         // √(I_max² − i_d²) by one iteration y ← y + g (I_max² − i_d² − y²)/(2 I_max)
-        // per update (the fixed point is the root; i_d moves slowly).
-        let (d, y) = (self.id().to_bits(), self.iq_max.to_bits());
-        let e = sat_i32(((i64::from(c.i_max_sq.to_bits()) << 24) - wmul(d, d) - wmul(y, y)) >> 24);
+        // per update (the fixed point is the root; i_d moves slowly). |i_d|, y ≤ I_max: the
+        // squares' difference lies in [−I_max², I_max²], within 32 bits.
+        let m = c.i_max.to_bits() >> c.i_shift;
+        let d = (self.id_ref.to_bits() >> c.i_shift).max(-m).min(m);
+        let y = (self.iq_max.to_bits() >> c.i_shift).max(-m).min(m);
+        let e = c.i_max_sq - c.squares_to_pu(d * d + y * y);
         self.iq_max = self
             .iq_max
             .saturating_add(Pu::from_bits(c.k_circle.apply_bits(e)))
             .min(c.i_max)
             .max(Pu::ZERO);
+        self.iq_max
     }
 
     /// The update of the drive's outer-loop slot `slot` (0–7): 1 the MTPA current, 3 and 7
-    /// the field-weakening integrator, 5 the `i_q` limit; even slots none (the speed loop's).
+    /// the field-weakening integrator, 5 the `i_q` limit (returned: the speed loop's new
+    /// limit); even slots none (the speed loop's).
     #[inline(always)]
-    pub fn update(&mut self, c: &FluxConfig, slot: u8, iq: Pu, v: &AlphaBeta, v_max: Pu) {
+    pub fn update(
+        &mut self,
+        c: &FluxConfig,
+        slot: u8,
+        iq: Pu,
+        v: &AlphaBeta,
+        v_max: Pu,
+    ) -> Option<Pu> {
         match slot {
             1 => self.update_mtpa(c, iq),
             3 | 7 => self.update_fw(c, v, v_max),
-            5 => self.update_circle(c),
+            5 => return Some(self.update_circle(c)),
             _ => {}
         }
+        None
     }
 
     /// [`FluxController::update`] for `slot`, then [`FluxController::reference`].

@@ -228,6 +228,9 @@ pub struct SpeedController {
     s: i64,
     /// `ff = −K_pΩ ω̂` of the last step.
     ff: Pu,
+    /// The output's limit, `≤ I_max`: lowered by the drive to the current circle's `|i_q|`
+    /// room when `i_d ≠ 0` (MTPA, field weakening), so that the integrator stops there.
+    limit: Pu,
 }
 
 /// Shift from [`Pu`] to the Q8.56 state.
@@ -237,9 +240,10 @@ impl SpeedController {
     /// Controller with zero integral state.
     pub fn new(config: SpeedConfig) -> Self {
         Self {
-            config,
             s: 0,
             ff: Pu::ZERO,
+            limit: config.i_max,
+            config,
         }
     }
 
@@ -249,11 +253,22 @@ impl SpeedController {
     }
 
     /// Bumpless restart at speed `omega` with current `iq` flowing: sets the integrator to
-    /// `iq + K_pΩ ω` (`iq` clamped to `±I_max`).
+    /// `iq + K_pΩ ω` (`iq` clamped to `±I_max`), the limit back to `I_max`.
     pub fn reset(&mut self, omega: Pu, iq: Pu) {
         let c = &self.config;
         self.ff = c.neg_kp.apply(omega);
+        self.limit = c.i_max;
         self.s = (iq.max(-c.i_max).min(c.i_max).to_bits() as i64) << S_SHIFT;
+    }
+
+    /// Sets the output's limit to `limit` within `[0, I_max]`; the next step clamps to it.
+    pub fn set_limit(&mut self, limit: Pu) {
+        self.limit = limit.min(self.config.i_max).max(Pu::ZERO);
+    }
+
+    /// The output's limit.
+    pub fn limit(&self) -> Pu {
+        self.limit
     }
 
     /// One speed-loop sample (every `decimation` control samples). Integer only; never
@@ -269,7 +284,7 @@ impl SpeedController {
         // decisions and the clamp are the same as with the exact sum.
         let (high, low) = ((self.s >> S_SHIFT) as i32, self.s as u32);
         let high = high.saturating_add(dff);
-        let (hi, lo) = (c.i_max.to_bits(), -c.i_max.to_bits());
+        let (hi, lo) = (self.limit.to_bits(), -self.limit.to_bits());
         let (up, down) = (e > 0, e < 0);
         // u_raw ≥ I_max ⟺ high ≥ hi; u_raw ≤ −I_max ⟺ high < lo, or high = lo and no fraction.
         let stop = (high >= hi && up) || ((high < lo || (high == lo && low == 0)) && down);

@@ -494,19 +494,26 @@ impl Drive {
         if self.slot & c.speed_mask == 0 {
             self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         }
+        // The speed loop's limit is the current circle's `|i_q|` room: `i_q*` needs no clamp.
         let i_ref = if c.flux.enabled() {
-            if self.slot & 1 != 0 {
+            if self.slot & 1 != 0
                 // The modulator's vector and circle of the last sample
                 // (docs/field-weakening.md).
-                self.flux.update(
+                && let Some(iq_max) = self.flux.update(
                     &c.flux,
                     self.slot,
                     self.iq_ref,
                     &self.telemetry.v,
                     self.inv_vdc.v_max(),
-                );
+                )
+            {
+                self.speed.set_limit(iq_max);
+                self.iq_ref = self.iq_ref.min(iq_max).max(iq_max.saturating_neg());
             }
-            self.flux.reference(self.iq_ref)
+            Dq {
+                d: self.flux.id_ref(),
+                q: self.iq_ref,
+            }
         } else {
             Dq {
                 d: Pu::ZERO,

@@ -381,11 +381,6 @@ impl<const F: u32> Coef<F> {
         Some(Self(m as i32))
     }
 
-    /// The coefficient of raw bits `bits` (`value · 2^F`), for constants.
-    pub const fn from_bits(bits: i32) -> Self {
-        Self(bits)
-    }
-
     /// The raw bits (`value · 2^F`).
     pub const fn bits(self) -> i32 {
         self.0

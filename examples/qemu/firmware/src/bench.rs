@@ -22,7 +22,10 @@ use pmsm_core::{
     SpeedController, SpeedDesign, SpeedOutput,
 };
 use pmsm_core::{DeadTimeConfig, DeadTimeDesign};
-use pmsm_core::{DriveInput, DriveOutput};
+use pmsm_core::{
+    Drive, DriveConfig, DriveInput, DriveOutput, EstimatorKind, FluxConfig, FluxController,
+    FluxDesign, StartupMode,
+};
 use pmsm_core::{Identify, IdentifyConfig, IdentifyDesign, IdentifyOutput};
 use pmsm_core::{Ipd, IpdConfig, IpdDesign, IpdOutput};
 use pmsm_core::{Polar, polar};
@@ -31,7 +34,7 @@ use pmsm_core::{clarke, inverse_clarke, inverse_park, park};
 use pmsm_core::{mul, mul_unit, pu_from_f64};
 use pmsm_pil::cases::{self, Case, DRIVE_STATE_WORD, DriveCase, STATE_RUN};
 use pmsm_pil::format::{CaseData, Recording};
-use pmsm_pil::setup::Setup;
+use pmsm_pil::setup::{DRIVE_SAMPLE_HZ, Setup};
 
 use crate::meter::Meter;
 
@@ -217,18 +220,18 @@ fn recorded_drive_input(rec: &CaseData, step: usize) -> (DriveInput, Pu) {
     cases::drive_input(&w)
 }
 
-/// `Drive::step` in `Run` on the recorded closed loop of the `drive` replay case (motor B,
-/// current-model MRAS): the drive is fed the recorded inputs, unmeasured, through its initial
-/// position detection, then every step in `Run` is measured.
+/// `Drive::step` of `drive` in `Run` on the recorded closed loop of the `drive` replay case
+/// (motor B, current-model MRAS): the drive is fed the recorded inputs, unmeasured, through its
+/// initial position detection, then every step in `Run` is measured.
 #[inline(never)]
-fn bench_drive_step(meter: &Meter, rec: &CaseData<'static>) -> Option<Stats> {
+fn bench_drive_step(meter: &Meter, rec: &CaseData<'static>, drive: Option<Drive>) -> Option<Stats> {
     let k0 = first_run_step(rec);
     let calls = rec.steps.checked_sub(k0).filter(|&n| n > 0)? as u32;
     let st = bench(
         meter,
         calls,
         || {
-            let mut d = DriveCase::drive().ok();
+            let mut d = drive;
             if let Some(d) = d.as_mut() {
                 for k in 0..k0 {
                     let (x, w) = recorded_drive_input(rec, k);
@@ -252,6 +255,74 @@ fn bench_drive_step(meter: &Meter, rec: &CaseData<'static>) -> Option<Stats> {
         },
     );
     Some(st)
+}
+
+/// The drive of the `drive` case with MTPA and field weakening on and the speed loop every
+/// second sample, so that no sample carries both it and an update of the d-axis reference
+/// (docs/field-weakening.md, "Cost"), started. On the recorded run (motor B at low speed) the
+/// updates run but stay near zero: what is measured is their cost, not their effect.
+fn drive_with_flux() -> Option<Drive> {
+    let b = Setup::motor_b().ok()?;
+    let mut design = b
+        .drive(EstimatorKind::MrasCurrent, StartupMode::Ipd)
+        .ok()?
+        .design;
+    design.flux = FluxDesign::ON;
+    design.speed.decimation = 2;
+    let mut d = Drive::new(DriveConfig::new(&b.motor, &b.inverter, DRIVE_SAMPLE_HZ, design).ok()?);
+    d.start();
+    Some(d)
+}
+
+/// The d-axis reference's configuration on motor B, MTPA and field weakening on, 3.6 A.
+#[inline(never)]
+fn flux_config() -> Option<FluxConfig> {
+    let b = Setup::motor_b().ok()?;
+    FluxConfig::new(&b.motor, &b.base, 3.6, FluxDesign::ON, 1.0, 2.0).ok()
+}
+
+/// The d-axis reference's three updates (MTPA and field weakening on), each alone.
+#[inline(never)]
+fn bench_flux(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
+    // rotating vector near the circle, a swinging q current (docs/field-weakening.md).
+    if let Some(fc) = flux_config() {
+        let mut fx = FluxController::default();
+        fx.reset(&fc);
+        let st = bench(
+            meter,
+            TRANSFORM_CALLS,
+            || fx,
+            |_, _| {},
+            |s| {
+                s.update_mtpa(
+                    &fc,
+                    Pu::from_bits(((TRANSFORM_CALLS as i32) << 12) - (1 << 22)),
+                )
+            },
+        );
+        report("flux_mtpa", &st);
+        let st = bench(
+            meter,
+            TRANSFORM_CALLS,
+            || (fx, AlphaBeta::default(), Pu::ZERO),
+            |s, k| {
+                s.1 = phasor(pu_from_f64(0.98), golden(k));
+                s.2 = pu_from_f64(1.0).saturating_add(Pu::from_bits((k as i32 & 7) << 10));
+            },
+            |s| s.0.update_fw(&fc, &s.1, s.2),
+        );
+        report("flux_fw", &st);
+        let st = bench(
+            meter,
+            TRANSFORM_CALLS,
+            || fx,
+            |_, _| {},
+            |s| {
+                black_box(s.update_circle(&fc));
+            },
+        );
+        report("flux_circle", &st);
+    }
 }
 
 /// `Ipd::step` over the recorded detection (the steps of the drive case before `Run`).
@@ -600,12 +671,17 @@ pub fn run_all(
     );
     report("deadtime", &st);
 
+    bench_flux(meter, report);
+
     // The drive's initial position detection and the drive step, on the recorded run.
     let ipd = IpdConfig::new(&b.motor, &b.base, IpdDesign::default())?;
     if let Some(rec) = drive_recording() {
         report("ipd_step", &bench_ipd(meter, &rec, ipd));
-        if let Some(st) = bench_drive_step(meter, &rec) {
+        if let Some(st) = bench_drive_step(meter, &rec, DriveCase::drive().ok()) {
             report("drive_step", &st);
+        }
+        if let Some(st) = bench_drive_step(meter, &rec, drive_with_flux()) {
+            report("drive_step_flux", &st);
         }
     }
     Ok(())
