@@ -83,6 +83,11 @@ const TRACK_POLE: f64 = 0.398_437_5;
 /// that `k V_max` is a shift and a subtraction.
 pub const VOLTAGE_MARGIN: f64 = 0.968_75;
 
+/// The same, overmodulating, of the hexagon's vertex: 15/16. At 31/32 the current loops had
+/// too little room near six-step and the speed swung (motor C unloaded at 3800–4000 r/min:
+/// ±90 r/min, current peaks of 60 A).
+pub const VOLTAGE_MARGIN_OVERMODULATING: f64 = 0.937_5;
+
 /// The voltages' shift before squaring: `|v| ≤ 2` per unit (2²⁵ bits) becomes 2¹⁴, its
 /// square ≤ 2²⁸, so that `|v|²` and `(k V_max)²` are 32-bit products (a 64-bit product is
 /// a call of some 25 instructions on ARMv6-M).
@@ -106,7 +111,7 @@ impl FluxDesign {
     };
 }
 
-/// Configuration of the [`FluxController`]: ten words, because the smallest target (the
+/// Configuration of the [`FluxController`]: eleven words, because the smallest target (the
 /// micro:bit's 16 KiB) holds the drive on its stack several times.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FluxConfig {
@@ -125,6 +130,9 @@ pub struct FluxConfig {
     k_circle: Coef<24>,
     /// `I_max`.
     i_max: Pu,
+    /// `k = 1 − 2^−margin_shift`: 5 ([`VOLTAGE_MARGIN`]), 4 overmodulating
+    /// ([`VOLTAGE_MARGIN_OVERMODULATING`]).
+    margin_shift: u32,
     /// `−I_d,lim`; zero without field weakening.
     id_min: Pu,
     /// Largest speed reference accepted, per unit ([`FluxConfig::max_speed`]).
@@ -213,14 +221,13 @@ impl FluxConfig {
             0.0
         };
         // The nominal bus: V_max = V_b (m = 1), or six-step's fundamental.
-        let max_pu = max_speed_f64(
-            psi,
-            ld,
-            r,
-            id_lim,
-            VOLTAGE_MARGIN * v_lim_pu,
-            SPEED_CAP_PER_BASE,
-        );
+        let overmodulating = v_lim_pu > 1.0;
+        let margin = if overmodulating {
+            VOLTAGE_MARGIN_OVERMODULATING
+        } else {
+            VOLTAGE_MARGIN
+        };
+        let max_pu = max_speed_f64(psi, ld, r, id_lim, margin * v_lim_pu, SPEED_CAP_PER_BASE);
         Ok(Self {
             sign_a,
             k_mtpa,
@@ -229,6 +236,7 @@ impl FluxConfig {
             i_max_sq: pu_from_f64(i_max * i_max).to_bits(),
             k_circle: Coef::new(TRACK_POLE / (2.0 * i_max)).unwrap_or(Coef::ZERO),
             i_max: pu_from_f64(i_max),
+            margin_shift: if overmodulating { 4 } else { 5 },
             id_min: pu_from_f64(-id_lim),
             speed_max: if design.field_weakening {
                 pu_from_f64(max_pu)
@@ -353,12 +361,12 @@ impl FluxController {
     /// at the last sample and its circle's radius `v_max` (the drive's slots 3 and 7).
     #[inline(never)]
     pub fn update_fw(&mut self, c: &FluxConfig, v: &AlphaBeta, v_max: Pu) {
-        // Field weakening: (k V_max)² − |v|² with k = 31/32, each voltage shifted right by 11
+        // Field weakening: (k V_max)² − |v|² with k = 31/32 (15/16 overmodulating), each voltage shifted right by 11
         // (≤ 2¹⁴ for ≤ 2 pu) and squared in 32 bits: the error in units of 2⁻²⁶ pu²;
         // (k V_max)² is recomputed only when the bus reading changes.
         if v_max != self.v_max {
             let m = v_max.to_bits().clamp(0, 2 << 24);
-            let lim = (m - (m >> 5)) >> V_SHIFT;
+            let lim = (m - (m >> c.margin_shift)) >> V_SHIFT;
             self.v_max = v_max;
             self.lim_sq = lim * lim;
         }

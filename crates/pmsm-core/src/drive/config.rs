@@ -296,7 +296,6 @@ pub struct DriveConfig {
     pub(crate) open_loop: OpenLoopConfig,
     pub(crate) protection: ProtectionConfig,
     pub(crate) monitor: super::monitor::MonitorConfig,
-    pub(crate) flux: FluxConfig,
     /// [`super::RECTIFY_GRACE_S`] in samples.
     pub(crate) rectify_grace_samples: u32,
     /// [`DriveDesign::pwm_delay_samples`].
@@ -306,6 +305,9 @@ pub struct DriveConfig {
     pub(crate) mid_turns: i32,
     /// `mid_turns − 2`, for the estimator's frames (`drive::mid_frame`).
     pub(crate) mid_frame_k: i32,
+    /// Declared last: declared before the fields above, its growth by two words moved them
+    /// past the Cortex-M0's short load offsets (15 instructions more in the step's worst case).
+    pub(crate) flux: FluxConfig,
 }
 
 /// [`OpenLoopDesign`] in per unit and samples.
