@@ -222,7 +222,8 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
     // turn it back through the open loop (drive/startup.rs, reversal): the load wins and that
     // reversal's handover check trips (driven_backwards if the estimate still turns
     // backwards then, handover otherwise; with the AO the rotor, 2e-5 kg·m² under 0.5 N·m,
-    // reaches −3700 r/min first and the overspeed trip takes it, 17 ms after it turned).
+    // reaches −3700 r/min first and the overspeed trip takes it, 16 ms after it turned; 70 ms
+    // with a PWM update delay of one period).
     for (observer, expected) in [
         ("mras-current", &["loss_of_lock"][..]),
         ("nlo", &["driven_backwards", "handover"][..]),

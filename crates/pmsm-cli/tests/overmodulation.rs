@@ -143,9 +143,14 @@ fn motor_c_near_six_step_holds() {
 /// more than half of the legs are held at a rail (measured 62 %).
 #[test]
 fn estimator_sees_the_applied_voltage() {
+    // This loop hands the duties to the plant at once: no PWM update delay to compensate.
     let sc = scenario(
         "b-3000rpm-fw.toml",
-        &[OVERMOD, ("model = \"switching\"", "model = \"averaged\"")],
+        &[
+            OVERMOD,
+            ("model = \"switching\"", "model = \"averaged\""),
+            ("[control]", "[control]\npwm_update_delay_periods = 0"),
+        ],
     );
     let mut setup = build_drive(&sc).unwrap();
     let mut plant = build_plant(&sc, &setup.inverter).unwrap();

@@ -389,7 +389,10 @@ mod app {
             if COMMISSIONING && c.commissioning {
                 // Anything that would stop the drive stops the identification.
                 match cmd {
-                    Command::Speed(w) => c.speed_ref = w,
+                    Command::Speed(w) => {
+                        c.speed_ref = w;
+                        c.drive.set_speed_ref(w);
+                    }
                     Command::Stop | Command::Button => {
                         end_commissioning(c);
                         cx.shared.identify.lock(|id| id.clear());
@@ -400,7 +403,11 @@ mod app {
                 continue;
             }
             match cmd {
-                Command::Speed(w) => c.speed_ref = w,
+                // Set on change only: the setter computes the closed loop's reference.
+                Command::Speed(w) => {
+                    c.speed_ref = w;
+                    c.drive.set_speed_ref(w);
+                }
                 Command::Commission if !COMMISSIONING => {}
                 Command::Commission => {
                     event = match c.commission {
@@ -460,6 +467,7 @@ mod app {
             && let Some(r) = cx.shared.rebuilt.lock(|r| r.pop())
         {
             c.drive = Drive::new(r.config);
+            c.drive.set_speed_ref(c.speed_ref);
             c.drive_scaling = Scaling {
                 offsets: c.adc.scaling.offsets,
                 ..r.scaling
@@ -481,7 +489,6 @@ mod app {
             );
             return;
         }
-        c.drive.set_speed_ref(c.speed_ref);
         let out = c.drive.step(&input);
         apply(&mut c.pwm, &out);
         cx.shared.recorder.lock(|r| r.record(&c.drive, &input));

@@ -36,9 +36,9 @@ pub enum Startup {
 
 /// Default `[control] pwm_update_delay_periods`: 0 for now. pmsm-stm32's TIM1 has 1 (compare
 /// preload transferred at the update event of the counter's peak, where the ADC samples;
-/// docs/drive.md, PWM update delay), and with 1 (compensated) every shipped scenario's test
-/// passes but one: the AO's open-loop start on the 24 V servo (servo-24v-backwards.toml)
-/// locks half a turn off, with or without the drive's compensation.
+/// docs/drive.md, PWM update delay). With 1 every test passes, but the current-model MRAS
+/// stalls on two fast random motors (`ω T_s` ≈ 0.07 at half rated speed), and the CI sample
+/// of `cargo xtask family` then misses its bar.
 pub const DEFAULT_PWM_UPDATE_DELAY_PERIODS: u32 = 0;
 
 /// `[control]` of a scenario.

@@ -317,6 +317,9 @@ pub(crate) struct OpenLoopConfig {
     /// Speed increment per sample, per unit.
     pub accel: Pu,
     pub handover_speed: Pu,
+    /// Samples the open loop may hold the handover speed while the estimate does not yet
+    /// agree with it: as long as the ramp took, within 10–50 ms.
+    pub handover_wait: u32,
     pub align_samples: u32,
     /// Rotation per sample, angle LSB per LSB of per-unit speed (`ω_b T_s 2⁸/(2π)`, below
     /// 128 for any `ω_b T_s < π`).
@@ -477,6 +480,9 @@ impl DriveConfig {
                 current: pu_from_f64(ol.current_a / base.current_a),
                 accel: pu_from_f64(ol.accel_rad_s2 * ts / base.omega_e_rad_s),
                 handover_speed: pu_from_f64(ol.handover_speed_rad_s / base.omega_e_rad_s),
+                handover_wait: libm::round(
+                    (ol.handover_speed_rad_s / ol.accel_rad_s2).clamp(0.01, 0.05) / ts,
+                ) as u32,
                 align_samples: libm::round(ol.align_time_s / ts) as u32,
                 turn_per_speed: crate::num::Coef::new(
                     base.omega_e_rad_s * ts / (Angle::RAD_PER_LSB * (1u64 << 24) as f64),

@@ -60,6 +60,9 @@ pub struct Drive {
     ipd: Ipd,
     open_loop: OpenLoop,
     speed_ref: Pu,
+    /// [`Drive::run_speed_ref`] of `speed_ref`, computed when it is set (a function of it
+    /// and the configuration only).
+    speed_ref_run: Pu,
     /// Filtered estimated speed for the speed loop (its time constant longer than the loop's
     /// period: a decimated loop sees the period's mean, not one sample at a fixed phase of what
     /// its own step excites, which biased the speed by 2 % at no load).
@@ -105,6 +108,7 @@ impl Drive {
             config,
             state: DriveState::Idle,
             speed_ref: Pu::ZERO,
+            speed_ref_run: Pu::ZERO,
             speed_filtered: Pu::ZERO,
             i_q_expected: Pu::ZERO,
             v_est: AlphaBeta::default(),
@@ -174,10 +178,13 @@ impl Drive {
 
     /// Sets the speed reference, electrical, per unit of `ω_b`, clamped to the maximum speed
     /// ([`crate::FluxConfig::max_speed`]; [`Drive::speed_ref_limit`] tells when it was).
-    /// (The reference is stored as asked and clamped where the drive reads it: a setter that
-    /// reads the configuration made callers keep one more copy of the drive on their stack.)
+    /// The closed loop's reference is computed here, once, not at every step. (Out of line:
+    /// inlined, a setter that reads the configuration made callers keep one more copy of the
+    /// drive on their stack.)
+    #[inline(never)]
     pub fn set_speed_ref(&mut self, omega: Pu) {
         self.speed_ref = omega;
+        self.speed_ref_run = self.run_speed_ref();
     }
 
     /// The speed reference clamped to the maximum speed (max/min: no panic path).
@@ -197,6 +204,8 @@ impl Drive {
         if self.state != DriveState::Idle {
             return;
         }
+        // A drive never given a reference runs at the one it holds for zero.
+        self.speed_ref_run = self.run_speed_ref();
         self.current.reset();
         self.monitor.reset();
         self.v_est = AlphaBeta::default();
@@ -237,7 +246,11 @@ impl Drive {
 
     /// The rotor is at `theta`: start the estimator there and run, or start open loop.
     fn rotor_found(&mut self, theta: Angle) -> DriveState {
-        self.estimator.reset(theta, Pu::ZERO);
+        // From rest, in the reference's direction (held through a back-EMF estimator's open
+        // loop below).
+        let reverse = self.speed_ref < Pu::ZERO;
+        self.estimator
+            .reset(theta, Pu::from_bits(-i32::from(reverse)));
         self.current.reset();
         self.flux.reset(&self.config.flux);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
@@ -248,7 +261,11 @@ impl Drive {
         self.speed_filtered = Pu::ZERO;
         self.i_q_expected = Pu::ZERO;
         if self.estimator.kind().needs_open_loop_start() {
-            self.open_loop = OpenLoop::start(theta, self.speed_ref < Pu::ZERO);
+            // From rest, in the reference's direction, which the estimator holds through the
+            // open loop.
+            let reverse = self.speed_ref < Pu::ZERO;
+            self.open_loop = OpenLoop::start(theta, reverse);
+            self.estimator.hold_direction(Some(!reverse));
             DriveState::OpenLoop
         } else {
             DriveState::Run
@@ -433,7 +450,21 @@ impl Drive {
             self.estimator.reset(theta, omega);
         }
         if self.open_loop.at_handover(&self.config) {
-            let iq = self.open_loop.handover(estimate, &self.config)?;
+            let iq = match self.open_loop.handover(estimate, &self.config) {
+                Ok(iq) => iq,
+                // A rotor the load holds the old way is named at once.
+                Err(Fault::DrivenBackwards) => return Err(Fault::DrivenBackwards),
+                Err(_) if self.open_loop.wait_for_estimate(&self.config) => {
+                    return Ok(Setpoint {
+                        theta,
+                        omega,
+                        i_ref,
+                        frame: None,
+                    });
+                }
+                Err(fault) => return Err(fault),
+            };
+            self.estimator.hold_direction(None);
             self.speed_filtered = estimate.omega;
             self.speed.reset(estimate.omega, iq);
             self.iq_ref = iq;
@@ -456,7 +487,7 @@ impl Drive {
     /// is [`Drive::run_speed_ref`]'s.
     #[inline(always)]
     fn run_speed_ref_step(&mut self, estimate: &Estimate) -> Pu {
-        let omega_ref = self.run_speed_ref();
+        let omega_ref = self.speed_ref_run;
         if self.estimator.kind().needs_open_loop_start()
             && self.state == DriveState::Run
             && (omega_ref.to_bits() ^ estimate.omega.to_bits()) < 0
@@ -475,6 +506,7 @@ impl Drive {
         if estimate.omega.saturating_abs() > h.saturating_add(h >> 2) {
             return;
         }
+        self.estimator.hold_direction(None);
         self.open_loop = OpenLoop::reverse(
             estimate.theta,
             estimate.omega,

@@ -69,6 +69,8 @@ pub(crate) struct OpenLoop {
     reversal_lag: Option<Angle>,
     /// The open loop is a reversal from the closed loop.
     reversal: bool,
+    /// Samples held at the handover speed so far, waiting for the estimate.
+    waited: u32,
 }
 
 impl OpenLoop {
@@ -109,6 +111,7 @@ impl OpenLoop {
             count: 0,
             reversal_lag: None,
             reversal: false,
+            waited: 0,
         }
     }
 
@@ -125,6 +128,7 @@ impl OpenLoop {
             count: 0,
             reversal_lag: Some(turn),
             reversal: true,
+            waited: 0,
         }
     }
 
@@ -168,6 +172,8 @@ impl OpenLoop {
         } else {
             ol.accel
         };
+        // Past the handover speed too while the handover waits (at most as long again as the
+        // ramp took: twice the handover speed).
         self.omega = self.omega.saturating_add(step);
         self.theta = self.theta + Angle(ol.turn_per_speed.apply_bits(self.omega.to_bits()));
         (
@@ -188,6 +194,15 @@ impl OpenLoop {
         } else {
             self.omega >= h
         }
+    }
+
+    /// Whether the handover may wait one more sample for an estimate that does not agree yet
+    /// (counting it): a back-EMF estimator started at rest may still be settling, on a light
+    /// rotor whose ramp took a few milliseconds, when the ramp ends. A reversal does not wait:
+    /// its rotor may be held by a load that a wait would let run away.
+    pub fn wait_for_estimate(&mut self, c: &DriveConfig) -> bool {
+        self.waited = self.waited.saturating_add(1);
+        !self.reversal && self.waited <= c.open_loop.handover_wait
     }
 
     /// Checks the estimate against the imposed frame; on success the torque current the rotor

@@ -107,6 +107,10 @@ impl Estimator for Ao {
         self.innovation
     }
 
+    fn hold_direction(&mut self, forward: Option<bool>) {
+        self.direction.hold(forward);
+    }
+
     fn reset(&mut self, theta: Angle, omega: Pu) {
         self.emf = self.config.rotor.emf_of(theta, omega);
         self.meter.restart();

@@ -51,6 +51,8 @@ pub(crate) struct Direction {
     previous: Option<Angle>,
     /// Mean angle step per sample, in angle LSB · 2^FRAC.
     mean_step: i64,
+    /// The direction is held (the drive's open loop imposes it).
+    held: bool,
 }
 
 impl Default for Direction {
@@ -60,6 +62,7 @@ impl Default for Direction {
             forward: true,
             previous: None,
             mean_step: 0,
+            held: false,
         }
     }
 }
@@ -80,6 +83,7 @@ impl Direction {
                 self.mean_step += (target - self.mean_step) >> c.shift;
             }
         }
+        let slow = slow && !self.held;
         if slow && self.forward && self.mean_step < -c.threshold {
             self.forward = false;
         } else if slow && !self.forward && self.mean_step > c.threshold {
@@ -88,10 +92,45 @@ impl Direction {
         self.forward
     }
 
+    /// Holds the direction `Some(forward)` (no flip) or lets it flip again (`None`).
+    pub fn hold(&mut self, forward: Option<bool>) {
+        if let Some(f) = forward {
+            self.forward = f;
+        }
+        self.held = forward.is_some();
+    }
+
     /// Restarts with a known direction.
     pub fn reset(&mut self, forward: bool) {
         self.forward = forward;
         self.previous = None;
         self.mean_step = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An EMF turning backwards at low speed flips the direction, unless it is held; released,
+    /// the same evidence flips it.
+    #[test]
+    fn a_held_direction_does_not_flip() {
+        let c = DirectionConfig::new(5e-5, 1000.0);
+        // 0.01 of the base speed backwards: far beyond the threshold (0.002).
+        let step = -((0.01 * 1000.0 * 5e-5 / Angle::RAD_PER_LSB) as i32);
+        let run = |d: &mut Direction| {
+            let mut phi = Angle::ZERO;
+            for _ in 0..2000 {
+                phi = phi + Angle(step);
+                d.update(&c, phi, true, true);
+            }
+            d.forward
+        };
+        let mut d = Direction::default();
+        d.hold(Some(true));
+        assert!(run(&mut d), "held");
+        d.hold(None);
+        assert!(!run(&mut d), "released");
     }
 }

@@ -66,6 +66,12 @@ pub trait Estimator {
     /// Restarts the estimator from a known rotor angle and speed (after an initial-position
     /// detection or an open-loop start), keeping its configuration.
     fn reset(&mut self, theta: Angle, omega: Pu);
+
+    /// Holds the direction of rotation (`Some(forward)`) or lets the estimator judge it again
+    /// (`None`). The drive holds it while its open loop imposes the direction from rest: an estimate whose EMF is still small may turn the wrong way for a few
+    /// samples, and the direction tracker, free to flip only at low speed, would then lock on
+    /// the mirror solution half a turn off. Estimators without a direction tracker ignore it.
+    fn hold_direction(&mut self, _forward: Option<bool>) {}
 }
 
 pub(crate) mod ao;
@@ -306,6 +312,18 @@ impl Estimator for AnyEstimator {
             AnyEstimator::MrasEmf(e) => e.reset(theta, omega),
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             AnyEstimator::MrasCurrent(e) => e.reset(theta, omega),
+        }
+    }
+    fn hold_direction(&mut self, forward: Option<bool>) {
+        match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
+            AnyEstimator::Nlo(e) => e.hold_direction(forward),
+            #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
+            AnyEstimator::Ao(e) => e.hold_direction(forward),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
+            AnyEstimator::MrasEmf(e) => e.hold_direction(forward),
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+            AnyEstimator::MrasCurrent(e) => e.hold_direction(forward),
         }
     }
 }

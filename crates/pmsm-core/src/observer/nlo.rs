@@ -177,6 +177,10 @@ impl Estimator for Nlo {
         self.innovation
     }
 
+    fn hold_direction(&mut self, forward: Option<bool>) {
+        self.direction.hold(forward);
+    }
+
     fn reset(&mut self, theta: Angle, omega: Pu) {
         self.emf = self.config.rotor.emf_of(theta, omega);
         let forward = omega >= Pu::ZERO;
