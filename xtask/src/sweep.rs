@@ -3,6 +3,7 @@
 
 use anyhow::{Result, bail};
 use pmsm_cli::commands::simulate::run_scenario;
+use pmsm_cli::commands::simulate::stats::rms_angle;
 use pmsm_cli::scenario_file;
 use pmsm_tests::signals::SplitMix;
 
@@ -70,12 +71,7 @@ pub fn run(n: usize) -> Result<()> {
         let sc = scenario_file::read(&path)?;
         let run = run_scenario(&sc)?;
         let tail: Vec<_> = run.rows.iter().filter(|r| r.t_s >= 1.3).collect();
-        let rms = (tail
-            .iter()
-            .map(|r| r.angle_error_rad().powi(2))
-            .sum::<f64>()
-            / tail.len() as f64)
-            .sqrt();
+        let rms = rms_angle(&tail);
         let speed = tail
             .iter()
             .map(|r| (r.speed_rpm - r.speed_ref_rpm).abs())

@@ -15,6 +15,30 @@ struct Case {
     m: (u32, f64, f64, f64, f64, f64, f64, f64),
 }
 
+/// Identified against true: R, L_d, L_q, ψ, J (relative).
+fn errors(got: &MotorParams, truth: &MotorParams) -> [f64; 5] {
+    [
+        rel(got.rs_ohm, truth.rs_ohm),
+        rel(got.ld_h, truth.ld_h),
+        rel(got.lq_h, truth.lq_h),
+        rel(got.flux_wb, truth.flux_wb),
+        rel(got.j_kg_m2, truth.j_kg_m2),
+    ]
+}
+
+/// The bars: R 3 %, L_d and L_q 5 %, ψ 3 %, J 15 %.
+fn assert_within_bars(what: &str, e: &[f64; 5]) {
+    let bars = [0.03, 0.05, 0.05, 0.03, 0.15];
+    for (k, (x, bar)) in e.iter().zip(bars).enumerate() {
+        assert!(
+            x.abs() < bar,
+            "{what}: {} off by {:+.2} %",
+            ["R", "L_d", "L_q", "psi", "J"][k],
+            100.0 * x
+        );
+    }
+}
+
 const CASES: [Case; 10] = [
     Case {
         name: "12 V gimbal, surface, p=7",
@@ -102,13 +126,7 @@ fn identifies_motors_it_was_not_tuned_for() {
         let run = identify(&model, &inverter, InverterKind::Switching, limit, 40.0)
             .unwrap_or_else(|e| panic!("{}: {e:#}", c.name));
         let m = run.identified.motor;
-        let e = [
-            rel(m.rs_ohm, r),
-            rel(m.ld_h, ld),
-            rel(m.lq_h, lq),
-            rel(m.flux_wb, psi),
-            rel(m.j_kg_m2, j),
-        ];
+        let e = errors(&m, &model.params);
         println!(
             "{:<34} {:>+7.2} {:>+7.2} {:>+7.2} {:>+7.2} {:>+7.2} {:>+7.1} {:>6.2}",
             c.name,
@@ -170,14 +188,7 @@ fn adc_offsets_and_noise() {
         Default::default(),
     )
     .unwrap();
-    let m = run.identified.motor;
-    let e = [
-        rel(m.rs_ohm, r),
-        rel(m.ld_h, ld),
-        rel(m.lq_h, lq),
-        rel(m.flux_wb, psi),
-        rel(m.j_kg_m2, j),
-    ];
+    let e = errors(&run.identified.motor, &model.params);
     println!(
         "{} with ADC offsets and noise: R {:+.2} %, Ld {:+.2} %, Lq {:+.2} %, psi {:+.2} %, J {:+.2} %",
         c.name,
@@ -187,8 +198,7 @@ fn adc_offsets_and_noise() {
         100.0 * e[3],
         100.0 * e[4]
     );
-    assert!(e[0].abs() < 0.03 && e[1].abs() < 0.05 && e[2].abs() < 0.05);
-    assert!(e[3].abs() < 0.03 && e[4].abs() < 0.15);
+    assert_within_bars(c.name, &e);
 }
 
 /// A heavy 540 V rotor (J = 0.027 kg m², 0.66 Wb, 11 kHz) starting near the unstable side of
@@ -210,14 +220,7 @@ fn a_heavy_rotor_is_waited_for() {
         current_full_scale_a: 2.5 * limit,
     };
     let run = identify(&model, &inverter, InverterKind::Switching, limit, 153.7).unwrap();
-    let m = run.identified.motor;
-    let e = [
-        rel(m.rs_ohm, r),
-        rel(m.ld_h, l),
-        rel(m.lq_h, l),
-        rel(m.flux_wb, psi),
-        rel(m.j_kg_m2, j),
-    ];
+    let e = errors(&run.identified.motor, &model.params);
     println!(
         "heavy rotor: R {:+.2} %, Ld {:+.2} %, Lq {:+.2} %, psi {:+.2} %, J {:+.2} % in {:.2} s",
         100.0 * e[0],
@@ -227,6 +230,5 @@ fn a_heavy_rotor_is_waited_for() {
         100.0 * e[4],
         run.duration_s
     );
-    assert!(e[0].abs() < 0.03 && e[1].abs() < 0.05 && e[2].abs() < 0.05);
-    assert!(e[3].abs() < 0.03 && e[4].abs() < 0.15);
+    assert_within_bars("heavy rotor", &e);
 }

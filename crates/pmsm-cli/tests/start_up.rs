@@ -4,6 +4,7 @@
 mod common;
 
 use common::scenario_text;
+use pmsm_cli::commands::simulate::stats::rms_angle;
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_core::DriveState;
 
@@ -93,12 +94,7 @@ fn a_back_emf_estimator_reverses_under_load_through_the_open_loop() {
         .iter()
         .map(|r| (r.speed_rpm + 2994.5).abs())
         .fold(0.0, f64::max);
-    let rms = (tail
-        .iter()
-        .map(|r| r.angle_error_rad().powi(2))
-        .sum::<f64>()
-        / tail.len() as f64)
-        .sqrt();
+    let rms = rms_angle(&tail);
     assert!(
         speed < 0.05 * 5989.0 && rms < 0.15,
         "at −2994.5 r/min: speed off by {speed:.0} r/min, angle error {rms:.3} rad rms"
@@ -128,12 +124,7 @@ fn a_back_emf_start_keeps_the_open_loops_direction() {
         .iter()
         .map(|r| (r.speed_rpm - 300.0).abs())
         .fold(0.0, f64::max);
-    let rms = (tail
-        .iter()
-        .map(|r| r.angle_error_rad().powi(2))
-        .sum::<f64>()
-        / tail.len() as f64)
-        .sqrt();
+    let rms = rms_angle(&tail);
     println!(
         "AO start with the PWM delay: speed within {speed:.1} r/min of 300, angle {rms:.4} rad rms"
     );
