@@ -5,12 +5,9 @@
 
 use crate::family::{Motor, family};
 use anyhow::{Result, bail};
-use pmsm_cli::commands::identify::{identify, rel};
+use pmsm_cli::commands::identify::{BARS, errors, identify};
 use pmsm_core::{InverterParams, MotorParams};
 use pmsm_plant::{InverterKind, MotorModel, Saturation};
-
-/// The bars: R, L_d, L_q, ψ, J (relative).
-const BARS: [f64; 5] = [0.03, 0.05, 0.05, 0.03, 0.15];
 
 /// The errors of one motor's identification, or why it failed.
 fn one(m: &Motor) -> Result<[f64; 6]> {
@@ -40,15 +37,7 @@ fn one(m: &Motor) -> Result<[f64; 6]> {
         limit,
         m.theta0_deg,
     )?;
-    let g = run.identified.motor;
-    Ok([
-        rel(g.rs_ohm, m.rs_ohm),
-        rel(g.ld_h, m.ld_h),
-        rel(g.lq_h, m.lq_h),
-        rel(g.flux_wb, m.flux_wb),
-        rel(g.j_kg_m2, m.j_kg_m2),
-        rel(g.b_nm_s, m.b_nm_s),
-    ])
+    Ok(errors(&run.identified.motor, &model.params))
 }
 
 pub fn main(args: &[String]) -> Result<()> {

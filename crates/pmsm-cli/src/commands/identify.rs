@@ -170,6 +170,22 @@ pub fn rel(got: f64, truth: f64) -> f64 {
     (got - truth) / truth
 }
 
+/// The bars the identification is held to on motors it was not tuned for
+/// (docs/identification.md): R, L_d, L_q, ψ, J, relative.
+pub const BARS: [f64; 5] = [0.03, 0.05, 0.05, 0.03, 0.15];
+
+/// Identified against true: R, L_d, L_q, ψ, J, B (relative; the first five against [`BARS`]).
+pub fn errors(got: &MotorParams, truth: &MotorParams) -> [f64; 6] {
+    [
+        rel(got.rs_ohm, truth.rs_ohm),
+        rel(got.ld_h, truth.ld_h),
+        rel(got.lq_h, truth.lq_h),
+        rel(got.flux_wb, truth.flux_wb),
+        rel(got.j_kg_m2, truth.j_kg_m2),
+        rel(got.b_nm_s, truth.b_nm_s),
+    ]
+}
+
 /// The motor file text (same keys and format as the examples).
 pub fn motor_toml(name: &str, m: &MotorParams) -> String {
     let mut s = String::new();

@@ -266,11 +266,6 @@ impl SpeedController {
         self.limit = limit.min(self.config.i_max).max(Pu::ZERO);
     }
 
-    /// The output's limit.
-    pub fn limit(&self) -> Pu {
-        self.limit
-    }
-
     /// One speed-loop sample (every `decimation` control samples). Integer only; never
     /// panics.
     pub fn step(&mut self, omega_ref: Pu, omega: Pu) -> SpeedOutput {

@@ -246,11 +246,7 @@ impl Drive {
 
     /// The rotor is at `theta`: start the estimator there and run, or start open loop.
     fn rotor_found(&mut self, theta: Angle) -> DriveState {
-        // From rest, in the reference's direction (held through a back-EMF estimator's open
-        // loop below).
-        let reverse = self.speed_ref < Pu::ZERO;
-        self.estimator
-            .reset(theta, Pu::from_bits(-i32::from(reverse)));
+        self.estimator.reset(theta, Pu::ZERO);
         self.current.reset();
         self.flux.reset(&self.config.flux);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
@@ -506,7 +502,6 @@ impl Drive {
         if estimate.omega.saturating_abs() > h.saturating_add(h >> 2) {
             return;
         }
-        self.estimator.hold_direction(None);
         self.open_loop = OpenLoop::reverse(
             estimate.theta,
             estimate.omega,

@@ -281,24 +281,19 @@ fn flux_config() -> Option<FluxConfig> {
     FluxConfig::new(&b.motor, &b.base, 3.6, FluxDesign::ON, 1.0, 2.0).ok()
 }
 
-/// The d-axis reference's three updates (MTPA and field weakening on), each alone.
+/// The d-axis reference's three updates (MTPA and field weakening on), each alone: a q
+/// current swinging over ±1 pu, a vector turning near the circle on a bus that moves.
 #[inline(never)]
 fn bench_flux(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
-    // rotating vector near the circle, a swinging q current (docs/field-weakening.md).
     if let Some(fc) = flux_config() {
         let mut fx = FluxController::default();
         fx.reset(&fc);
         let st = bench(
             meter,
             TRANSFORM_CALLS,
-            || fx,
-            |_, _| {},
-            |s| {
-                s.update_mtpa(
-                    &fc,
-                    Pu::from_bits(((TRANSFORM_CALLS as i32) << 12) - (1 << 22)),
-                )
-            },
+            || (fx, Pu::ZERO),
+            |s, k| s.1 = Pu::from_bits(((k % 64) as i32 - 32) << 19),
+            |s| s.0.update_mtpa(&fc, s.1),
         );
         report("flux_mtpa", &st);
         let st = bench(
