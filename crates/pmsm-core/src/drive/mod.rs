@@ -86,8 +86,8 @@ pub struct Drive {
     /// The d-axis reference (MTPA, field weakening).
     flux: FluxController,
     /// The slot of this sample (0–7): the speed loop and the d-axis reference's updates take
-    /// turns, and the monitor's two halves alternate with its parity, so that no sample pays
-    /// for all of them.
+    /// turns, and so do the monitor's slower checks (modulo four), so that no sample pays for
+    /// all of them.
     slot: u8,
     /// Samples since the drive tripped into outputs off ([`Drive::faulted`]).
     since_trip: u32,
@@ -386,12 +386,8 @@ impl Drive {
             iq_ref: self.iq_ref,
             running: self.state == DriveState::Run,
         };
-        self.monitor.check(
-            &self.config.monitor,
-            &signals,
-            &self.estimator,
-            self.slot & 1 != 0,
-        )
+        self.monitor
+            .check(&self.config.monitor, &signals, &self.estimator, self.slot)
     }
 
     /// One sample of the initial position detection, which drives the PWM itself; on success

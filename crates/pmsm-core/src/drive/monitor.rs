@@ -7,9 +7,11 @@
 //! The filters are first-order with the pole a power of two (a shift, no product): their time
 //! constants below are rounded to a power of two of their steps (at 14 kHz, 1 ms is 16
 //! samples). The sum check runs every sample; the stuck-channel and phase-loss checks run on
-//! even samples and the stall and loss-of-lock checks on odd ones, so that no sample pays for
-//! all of them (their counts and filters are in steps of two samples: at 14 kHz 2 ms is 16
-//! steps, 10 ms 64).
+//! even samples (their counts and filters in steps of two samples: at 14 kHz 5 ms is 32
+//! steps), and the odd samples take turns: the stall, driven-backwards and acceleration checks
+//! on one, the estimator's health figure on the next (their counts and filters in steps of
+//! four samples: at 14 kHz 2 ms is 8 steps, 10 ms 32). No sample pays for all of them, and the
+//! odd ones, which also carry the drive's d-axis updates, pay for half of the motion checks.
 //!
 //! | fault | evidence | time to trip |
 //! |---|---|---|
@@ -26,8 +28,9 @@ use crate::frames::Abc;
 use crate::num::{Pu, follow, follow_shift, pu_from_f64};
 use crate::observer::{AnyEstimator, Estimator};
 
-/// Thresholds and filter poles, per unit and in samples (`settle_samples`, `ms1`) or in steps
-/// of two samples (the rest: the alternating checks).
+/// Thresholds and filter poles, per unit and in samples (`settle_samples`, `ms1`), in steps
+/// of two samples (stuck channel, phase loss) or of four (stall, driven backwards, loss of
+/// lock).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MonitorConfig {
     pub sum_limit: Pu,
@@ -58,7 +61,7 @@ pub(crate) struct MonitorConfig {
     pub stall_samples: u32,
     /// 90 % of the speed loop's current limit, per unit.
     pub stall_current: Pu,
-    /// Largest plausible change of the estimated speed per step (two samples), per unit.
+    /// Largest plausible change of the estimated speed per step (four samples), per unit.
     pub accel_limit: Pu,
     /// Samples after entering the closed loop before the lock is judged (the estimate settles
     /// after a detection or a handover).
@@ -95,18 +98,21 @@ impl MonitorConfig {
         current_limit_pu: f64,
         health_limit: Pu,
     ) -> Option<Self> {
-        // The phase-loss, stall and loss-of-lock checks run on alternate samples (see
-        // `Monitor::check`): their periods, counts and time constants are in steps of 2 T_s.
+        // The stuck-channel and phase-loss checks run on alternate samples, the motion checks
+        // on every fourth (see `Monitor::check`): their periods, counts and time constants are
+        // in steps of 2 T_s and 4 T_s.
         let ts2 = 2.0 * ts;
+        let ts4 = 4.0 * ts;
         // τ/T to the nearest power of two, 1 to 2²⁰ steps of T.
         let pole = |tau: f64| follow_shift(tau / ts);
         let pole2 = |tau: f64| follow_shift(tau / ts2);
+        let pole4 = |tau: f64| follow_shift(tau / ts4);
         Some(Self {
             sum_limit: pu_from_f64(0.15),
             ms1: pole(1e-3)?,
-            ms2: pole2(2e-3)?,
-            ms10: pole2(10e-3)?,
-            stuck_samples: libm::ceil(0.05 / ts2) as u32,
+            ms2: pole4(2e-3)?,
+            ms10: pole4(10e-3)?,
+            stuck_samples: libm::ceil(0.05 / ts4) as u32,
             turning: pu_from_f64(0.02),
             min_power: {
                 let m = 0.01 * 4096.0;
@@ -121,17 +127,17 @@ impl MonitorConfig {
             ) as u64,
             phase_loss_arm_samples: 2 << pole2(5e-3)?,
             ms5: pole2(5e-3)?,
-            stall_samples: libm::ceil(0.15 / ts2) as u32,
+            stall_samples: libm::ceil(0.15 / ts4) as u32,
             stall_current: pu_from_f64(0.9 * current_limit_pu),
-            // The speed step over 2 T_s.
-            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts2 / omega_b),
+            // The speed step over 4 T_s.
+            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts4 / omega_b),
             settle_samples: libm::ceil(0.1 / ts) as u32,
             health_limit,
-            health_arm_samples: libm::ceil(0.04 / ts2) as u32,
+            health_arm_samples: libm::ceil(0.04 / ts4) as u32,
             steady_error: pu_from_f64(0.02),
             backwards_speed: pu_from_f64(0.1),
-            backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * ts2 / omega_b),
-            backwards_samples: libm::ceil(0.02 / ts2) as u32,
+            backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * ts4 / omega_b),
+            backwards_samples: libm::ceil(0.02 / ts4) as u32,
         })
     }
 }
@@ -181,14 +187,16 @@ impl Monitor {
         *self = Self::default();
     }
 
-    /// One sample of every check; the first fault found. `odd`: this sample runs the stall
-    /// and loss-of-lock checks, else the phase-loss check (the drive's sample count's parity).
+    /// One sample of every check; the first fault found. `slot`, the drive's sample count
+    /// modulo four, chooses the slower checks: the stuck-channel and phase-loss ones on even
+    /// slots, the stall, driven-backwards and acceleration ones on slot 1, the health
+    /// figure's on slot 3.
     pub fn check(
         &mut self,
         c: &MonitorConfig,
         s: &Signals,
         e: &AnyEstimator,
-        odd: bool,
+        slot: u8,
     ) -> Option<Fault> {
         let ph = [s.i_abc.a, s.i_abc.b, s.i_abc.c];
         // Three currents of a star winding sum to zero.
@@ -208,21 +216,33 @@ impl Monitor {
         } else {
             0
         };
-        // The slower checks alternate, so that no sample pays for all of them: phase loss on
-        // even samples, stall and loss of lock on odd ones (their counts and filters are in
-        // steps of two samples).
-        if odd {
-            return self.check_motion(c, s, speed, e);
+        // The slower checks take turns, so that no sample pays for all of them: phase loss on
+        // even samples (counts and filters in steps of two samples), the motion checks and
+        // the health figure with the stuck channels on alternate odd ones (in steps of four).
+        match slot & 3 {
+            1 => self.check_motion(c, s, speed),
+            3 => self
+                .check_health(c, s, e)
+                .or_else(|| self.check_stuck(c, &ph, speed)),
+            _ => self.check_phase_loss(c, &ph, speed, s.running),
         }
-        if let Some(f) = self.check_stuck(c, &ph, speed) {
-            return Some(f);
-        }
+    }
+
+    /// Phase loss (even samples).
+    #[inline(always)]
+    fn check_phase_loss(
+        &mut self,
+        c: &MonitorConfig,
+        ph: &[Pu; 3],
+        speed: Pu,
+        running: bool,
+    ) -> Option<Fault> {
         // Phase loss: one phase carries under 3/64 (4.7 %) of the current's power (a third
         // when balanced) while the rotor turns fast enough for the filter to average a period's
         // ripple away. An open phase keeps its current at zero (noise only), whatever the load:
         // the other two then carry ±the same current, and its share falls with the filter.
         let mut total = 0u32;
-        for (p, x) in self.power.iter_mut().zip(ph) {
+        for (p, &x) in self.power.iter_mut().zip(ph) {
             let sq = phase_power(x);
             // Both ≤ 2³⁰: the difference fits an i32, the filtered value stays in [0, 2³⁰].
             *p = p.wrapping_add_signed((sq.wrapping_sub(*p) as i32) >> c.ms5);
@@ -231,7 +251,7 @@ impl Monitor {
         // Armed once the conditions have held for two time constants: a current vector just
         // built from nothing (a load step at no load) or a filter that has just come up to
         // speed has not turned through every phase yet.
-        self.armed = if s.running && speed > c.phase_loss_speed && total > c.min_power {
+        self.armed = if running && speed > c.phase_loss_speed && total > c.min_power {
             self.armed.saturating_add(1)
         } else {
             0
@@ -252,8 +272,8 @@ impl Monitor {
         None
     }
 
-    /// Stuck channel (even samples): the same bits for 50 ms while the rotor turns and other
-    /// phases change (compared with the reading two samples before).
+    /// Stuck channel (slot 3 of four): the same bits for 50 ms while the rotor turns and
+    /// other phases change (compared with the reading four samples before).
     #[inline(always)]
     fn check_stuck(&mut self, c: &MonitorConfig, ph: &[Pu; 3], speed: Pu) -> Option<Fault> {
         let turning = speed > c.turning;
@@ -282,14 +302,9 @@ impl Monitor {
         None
     }
 
-    /// Stall and loss of lock (odd samples).
-    fn check_motion(
-        &mut self,
-        c: &MonitorConfig,
-        s: &Signals,
-        speed: Pu,
-        e: &AnyEstimator,
-    ) -> Option<Fault> {
+    /// Stall, driven backwards, and loss of lock from the estimate's acceleration (slot 1 of
+    /// four).
+    fn check_motion(&mut self, c: &MonitorConfig, s: &Signals, speed: Pu) -> Option<Fault> {
         // Stall: at the current limit and far below the reference for 150 ms. "Below" along the
         // reference's direction: an estimate turning the other way (a lock lost through zero
         // speed under load) is slow too, not fast.
@@ -348,6 +363,11 @@ impl Monitor {
                 return Some(Fault::LossOfLock);
             }
         }
+        None
+    }
+
+    /// Loss of lock from the estimator's health figure (slot 3 of four).
+    fn check_health(&mut self, c: &MonitorConfig, s: &Signals, e: &AnyEstimator) -> Option<Fault> {
         // Loss of lock: the estimator's own figure of how badly its model explains the
         // measurements, filtered, once settled.
         self.health = if s.running {
@@ -428,8 +448,9 @@ mod tests {
                 iq_ref: pu_from_f64(iq_ref),
                 running: true,
             };
-            // The first sample is odd, as the drive's first (its slot is counted before use).
-            if let Some(f) = m.check(&c.monitor, &s, &e, k % 2 == 0) {
+            // The first sample is slot 1, as the drive's first (its slot is counted before
+            // use).
+            if let Some(f) = m.check(&c.monitor, &s, &e, (k + 1) as u8) {
                 return Some((k, f));
             }
         }
