@@ -178,10 +178,5 @@ pub fn section() -> Result<String> {
         "| Motor A, NLO, standstill → 1146 r/min at 5 N·m: steady position error rms | {:.4} rad | |\n\n",
         rms_angle(&window(&a.rows, 2.6, 3.0))
     ));
-    s.push_str(
-        "Known imperfection: at no load the phase currents hover near zero, where the residue of the \
-         dead-time compensation makes the MRAS speed estimate jitter by tens of r/min (the true speed \
-         by a few); under load it vanishes.\n\n",
-    );
     Ok(s)
 }

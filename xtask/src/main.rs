@@ -20,6 +20,7 @@ mod drive_motor_b;
 mod examples;
 mod family;
 mod identify_family;
+mod light_load;
 mod map;
 mod observers_motor_a;
 mod pil;
@@ -86,12 +87,19 @@ fn main() -> Result<()> {
                 }
             }
         }
+        "light-load" => {
+            print!(
+                "{}",
+                light_load::section(Some(&root().join("docs/figures")))?
+            );
+            Ok(())
+        }
         "plant-speed" => {
             print!("{}", plant_speed::section()?);
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | plant-speed | sweep [N] | map | family [N] [--seed S] [--check] [--write] | identify-family [N] [--seed S]"
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | family [N] [--seed S] [--check] [--write] | identify-family [N] [--seed S]"
         ),
     }
 }
@@ -109,6 +117,8 @@ fn perf() -> Result<()> {
     doc.push_str(&observers_motor_a::section());
     eprintln!("running the drive of Khlaief, Boussak, Gossa (2012) ...");
     doc.push_str(&drive_motor_b::section()?);
+    eprintln!("motor B at light load ...");
+    doc.push_str(&light_load::section(Some(&root().join("docs/figures")))?);
     eprintln!("robustness to parameter errors ...");
     doc.push_str(&robustness::section()?);
     // The operating map is `cargo xtask map`'s (a minute more): kept as it is.

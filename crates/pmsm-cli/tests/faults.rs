@@ -3,7 +3,7 @@
 
 use pmsm_cli::commands::simulate::{Run, run_scenario};
 use pmsm_cli::scenario_file;
-use pmsm_core::DriveState;
+use pmsm_core::{DriveState, Fault};
 use std::path::Path;
 
 fn examples() -> std::path::PathBuf {
@@ -37,7 +37,9 @@ fn run_with(faults: &str, edits: &[(&str, &str)]) -> Run {
     run_scenario(&sc).unwrap()
 }
 
-/// The first fault after `t0`: its time after `t0` and its name; and that the outputs stay off.
+/// The first fault after `t0`: its time after `t0` and its name; and that the outputs stay off,
+/// or turn to the active short of an overspeed (a load that drives the tripped motor until
+/// its EMF exceeds the bus).
 fn detected(run: &Run, t0: f64) -> (f64, &'static str) {
     let first = run
         .rows
@@ -54,7 +56,9 @@ fn detected(run: &Run, t0: f64) -> (f64, &'static str) {
         run.rows
             .iter()
             .filter(|r| r.t_s > first.t_s)
-            .all(|r| !r.pwm_on),
+            .all(|r| !r.pwm_on
+                || (matches!(r.state, DriveState::Fault(Fault::Overspeed(_)))
+                    && r.duties.iter().all(|d| d.abs() < 1e-12))),
         "outputs back on after the fault"
     );
     (first.t_s - t0, first.fault())

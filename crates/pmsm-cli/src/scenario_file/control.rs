@@ -101,6 +101,11 @@ pub struct Control {
     /// Overmodulation up to six-step beyond the modulator's circle (default false).
     #[serde(default)]
     pub overmodulation: bool,
+    /// The d-axis current the drive holds at light load, A peak (docs/drive.md, "light load";
+    /// default `pmsm_core::LightLoadConfig::default_current_a`: three times the dead-time
+    /// compensation's band, at most a sixth of the current limit, with the current-model
+    /// MRAS; 0 with the other estimators; 0 turns it off).
+    pub light_load_id_a: Option<f64>,
     /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
     /// default false).
     #[serde(default)]
@@ -119,6 +124,9 @@ impl Control {
         }
         if let Some(t) = self.dead_time_s {
             in_range("control.dead_time_s", t, 0.0, 1e-3)?;
+        }
+        if let Some(i) = self.light_load_id_a {
+            in_range("control.light_load_id_a", i, 0.0, 1e4)?;
         }
         if let Some(n) = self.pwm_update_delay_periods {
             in_range("control.pwm_update_delay_periods", n as f64, 0.0, 16.0)?;

@@ -13,12 +13,16 @@
 
 pub(crate) mod current;
 pub(crate) mod flux;
+pub(crate) mod light_load;
 pub(crate) mod pi;
 pub(crate) mod speed;
 
 pub use current::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput};
 pub use flux::{
     FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,
+};
+pub use light_load::{
+    LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT, LightLoad, LightLoadConfig,
 };
 pub use pi::{Pi, PiConfig, PiOutput};
 pub use speed::{SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};

@@ -4,6 +4,7 @@
 use crate::Angle;
 use crate::control::current::{CurrentConfig, CurrentDesign};
 use crate::control::flux::{FluxConfig, FluxDesign};
+use crate::control::light_load::LightLoadConfig;
 use crate::control::speed::{SpeedConfig, SpeedDesign};
 use crate::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode};
 use crate::error::ConfigError;
@@ -190,6 +191,13 @@ pub struct DriveDesign {
     /// gives the estimator the voltage that acted over the period that just ended. At most
     /// [`MAX_PWM_DELAY_SAMPLES`]; default 0.
     pub pwm_delay_samples: u8,
+    /// The d-axis current held at light load, A peak (docs/drive.md, "light load";
+    /// [`LightLoadConfig`]); 0 turns it off. Default
+    /// [`LightLoadConfig::default_current_a`]: three times the dead-time compensation's band,
+    /// at most a sixth of the speed loop's current limit, for the current-model MRAS; 0 for
+    /// the back-EMF estimators and for an inverter without dead
+    /// time.
+    pub light_load_id_a: f64,
 }
 
 /// Longest PWM update delay the drive compensates, control samples.
@@ -203,6 +211,8 @@ impl DriveDesign {
         base: &PerUnit,
         estimator: EstimatorKind,
     ) -> Self {
+        let deadtime = DeadTimeDesign::default_for(motor, inverter);
+        let speed = SpeedDesign::default_for(base);
         Self {
             estimator,
             observer_gain_rad_s: default_observer_gain(motor, base),
@@ -211,7 +221,7 @@ impl DriveDesign {
             speed: {
                 // A back-EMF estimator's speed carries the ripple of every voltage error the
                 // dead time leaves (6th harmonic): its loop gets 40 % of the default bandwidth.
-                let mut d = SpeedDesign::default_for(base);
+                let mut d = speed;
                 if estimator.needs_open_loop_start() {
                     d.bandwidth_rad_s *= 0.4;
                 }
@@ -225,7 +235,7 @@ impl DriveDesign {
                 } * crate::control::speed::DEFAULT_BANDWIDTH_TS
                     / base.sample_s,
             ),
-            deadtime: DeadTimeDesign::default_for(motor, inverter),
+            deadtime,
             ipd: IpdDesign::default(),
             startup: StartupMode::Auto,
             open_loop: OpenLoopDesign::default_for(motor, base),
@@ -233,6 +243,18 @@ impl DriveDesign {
             flux: FluxDesign::default(),
             overmodulation: false,
             pwm_delay_samples: 0,
+            // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
+            // oscillate at no load; a d current switched in at their handover disturbed an NLO
+            // start of the random family.
+            light_load_id_a: if estimator.needs_open_loop_start() {
+                0.0
+            } else {
+                LightLoadConfig::default_current_a(
+                    deadtime.band_a,
+                    speed.current_limit_a,
+                    inverter.dead_time_s,
+                )
+            },
         }
     }
 }
@@ -305,6 +327,8 @@ pub struct DriveConfig {
     pub(crate) mid_turns: i32,
     /// `mid_turns − 2`, for the estimator's frames (`drive::mid_frame`).
     pub(crate) mid_frame_k: i32,
+    /// The light-load d-axis current ([`DriveDesign::light_load_id_a`]).
+    pub(crate) light_load: LightLoadConfig,
     /// Declared last: declared before the fields above, its growth by two words moved them
     /// past the Cortex-M0's short load offsets (15 instructions more in the step's worst case).
     pub(crate) flux: FluxConfig,
@@ -371,6 +395,7 @@ impl DriveConfig {
         design.startup = design.startup.resolve(motor, &base, &design.ipd);
         // Built first: a fallible call late in the literal below makes the compiler keep
         // every field before it in temporaries (kilobytes of stack on ARMv6-M).
+        let deadtime = DeadTimeConfig::new(inverter, &base, design.deadtime)?;
         let flux = FluxConfig::new(
             motor,
             &base,
@@ -469,7 +494,7 @@ impl DriveConfig {
                     follow_shift(1.0 / (w * ts)).unwrap_or(0)
                 }
             },
-            deadtime: DeadTimeConfig::new(inverter, &base, design.deadtime)?,
+            deadtime,
             svpwm: svpwm_config(inverter, &design)?,
             // Only an IPD start-up needs pulses this motor and bus can drive.
             ipd: match design.startup {
@@ -517,6 +542,13 @@ impl DriveConfig {
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
             flux,
+            // Updated every eighth sample (`Drive::speed_loop`).
+            light_load: LightLoadConfig::new(
+                design.light_load_id_a,
+                LightLoadConfig::default_fade_rad_s(motor.flux_wb, deadtime.v_dead_nominal_v),
+                &base,
+                8,
+            )?,
             rectify_grace_samples: libm::ceil(super::RECTIFY_GRACE_S / ts) as u32,
             pwm_delay: design.pwm_delay_samples,
             mid_turns: 2 * design.pwm_delay_samples as i32 + 1,

@@ -40,6 +40,7 @@ pub use tracking::{
 use crate::angle::{Angle, SinCos};
 use crate::control::current::{CurrentController, CurrentInput};
 use crate::control::flux::FluxController;
+use crate::control::light_load::LightLoad;
 use crate::control::speed::SpeedController;
 use crate::deadtime::{CurrentSource, DeadTimeBus};
 use crate::frames::{AlphaBeta, Dq, clarke, inverse_park, park};
@@ -85,6 +86,8 @@ pub struct Drive {
     deadtime_bus: DeadTimeBus,
     /// The d-axis reference (MTPA, field weakening).
     flux: FluxController,
+    /// The light-load d-axis current.
+    light_load: LightLoad,
     /// The slot of this sample (0–7): the speed loop and the d-axis reference's updates take
     /// turns, and so do the monitor's slower checks (modulo four), so that no sample pays for
     /// all of them.
@@ -124,6 +127,7 @@ impl Drive {
                 f.reset(&config.flux);
                 f
             },
+            light_load: LightLoad::default(),
             slot: 0,
             since_trip: 0,
         }
@@ -249,6 +253,8 @@ impl Drive {
         self.estimator.reset(theta, Pu::ZERO);
         self.current.reset();
         self.flux.reset(&self.config.flux);
+        self.light_load
+            .reset(&self.config.light_load, Pu::ZERO, Pu::ZERO);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
         self.iq_ref = Pu::ZERO;
         // The first sample of the closed loop is slot 0: it runs the speed loop. The speed
@@ -461,6 +467,8 @@ impl Drive {
             self.speed.reset(estimate.omega, iq);
             self.iq_ref = iq;
             self.flux.reset(&self.config.flux);
+            self.light_load
+                .reset(&self.config.light_load, iq, estimate.omega);
             self.slot = LAST_SLOT;
             self.state = DriveState::Run;
         }
@@ -517,6 +525,13 @@ impl Drive {
         if self.slot & c.speed_mask == 0 {
             self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         }
+        // The light-load d current follows |i_q*| slowly (every eighth sample, on the slot the
+        // monitor leaves free).
+        if self.slot == 7 {
+            self.light_load
+                .update(&c.light_load, self.iq_ref, self.speed_filtered);
+        }
+        let light = self.light_load.id_ref();
         // The speed loop's limit is the current circle's `|i_q|` room: `i_q*` needs no clamp.
         let i_ref = if c.flux.enabled() {
             if self.slot & 1 != 0
@@ -533,13 +548,14 @@ impl Drive {
                 self.speed.set_limit(iq_max);
                 self.iq_ref = self.iq_ref.min(iq_max).max(iq_max.saturating_neg());
             }
+            // The more negative of the two d references.
             Dq {
-                d: self.flux.id_ref(),
+                d: self.flux.id_ref().min(light),
                 q: self.iq_ref,
             }
         } else {
             Dq {
-                d: Pu::ZERO,
+                d: light,
                 q: self.iq_ref,
             }
         };

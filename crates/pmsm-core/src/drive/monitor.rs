@@ -6,18 +6,19 @@
 //!
 //! The filters are first-order with the pole a power of two (a shift, no product): their time
 //! constants below are rounded to a power of two of their steps (at 14 kHz, 1 ms is 16
-//! samples). The sum check runs every sample; the stuck-channel and phase-loss checks run on
-//! even samples (their counts and filters in steps of two samples: at 14 kHz 5 ms is 32
-//! steps), and the odd samples take turns: the stall, driven-backwards and acceleration checks
-//! on one, the estimator's health figure on the next (their counts and filters in steps of
-//! four samples: at 14 kHz 2 ms is 8 steps, 10 ms 32). No sample pays for all of them, and the
-//! odd ones, which also carry the drive's d-axis updates, pay for half of the motion checks.
+//! samples). The sum check runs every sample and the phase-loss check on even samples (its
+//! counts and filter in steps of two samples: at 14 kHz 5 ms is 32 steps). The odd samples
+//! take turns in the drive's cycle of eight: the stuck channels on slot 1, the estimator's
+//! health figure on slot 3, the stall, driven-backwards and acceleration checks on slot 5 (their
+//! counts and filters in steps of eight samples: at 14 kHz 2 ms is 4 steps, 10 ms 16), and slot
+//! 7 is left to the drive's light-load current. No sample pays for more than one of them: the
+//! odd ones also carry the drive's d-axis updates.
 //!
 //! | fault | evidence | time to trip |
 //! |---|---|---|
 //! | current sensor (sum) | `|i_a + i_b + i_c|` filtered over 1 ms above 0.15 `I_b` | 1–3 ms |
 //! | current sensor (stuck) | a phase reading the same bits for 50 ms while the rotor turns and another phase changes | 50 ms |
-//! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (5 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) through a quarter turn, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `0.5/τ` (`τ` the filter's time constant; 110 rad/s electrical at 5 ms) for `2τ`, at any load | 10–30 ms at 800 r/min on motor B, no load (under load the loss-of-lock check is often first) |
+//! | phase loss (open or unbalanced phase) | one phase's filtered `i²` (5 ms) below 3/64 (4.7 %) of the three's sum (a third when balanced) through half a turn, with the sum above that of a balanced 1 % `I_b` and the rotor turning faster than `0.5/τ` (`τ` the filter's time constant; 110 rad/s electrical at 5 ms) for `2τ`, at any load | 10–30 ms at 800 r/min on motor B, no load (under load the loss-of-lock check is often first) |
 //! | stall | the speed loop's current reference above 90 % of its limit and the estimated speed, along the reference's direction, below half the reference for 150 ms | 150 ms |
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
 //! | driven backwards | the speed loop at 90 % of its limit in the reference's direction, the estimated speed the other way beyond 0.1 pu and above a ceiling that starts at its value and falls at 1/16 of the motor's largest deceleration, for 20 ms | 20–40 ms |
@@ -29,7 +30,7 @@ use crate::num::{Pu, follow, follow_shift, pu_from_f64};
 use crate::observer::{AnyEstimator, Estimator};
 
 /// Thresholds and filter poles, per unit and in samples (`settle_samples`, `ms1`), in steps
-/// of two samples (stuck channel, phase loss) or of four (stall, driven backwards, loss of
+/// of two samples (phase loss) or of eight (stuck channel, stall, driven backwards, loss of
 /// lock).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MonitorConfig {
@@ -50,10 +51,12 @@ pub(crate) struct MonitorConfig {
     /// filter), where the ripple of a balanced phase's filtered square is 71 % of its mean
     /// (its share still above 3/32, twice the threshold).
     pub phase_loss_speed: Pu,
-    /// Rotation a phase must stay below 3/64 of the power through before it trips: a quarter
+    /// Rotation a phase must stay below 3/64 of the power through before it trips: half a
     /// turn (electrical), as the sum of the speed's bits over the steps. A healthy current
     /// vector that was just built in one direction (a load step) turns through every phase
-    /// within it; an open phase stays dark.
+    /// within it; an open phase stays dark. (A quarter turn tripped a healthy 540 V motor of
+    /// the random family at load off, whose small current vector turned back in the rotor
+    /// frame as fast as the rotor turned, so that it stood still on the stator for 6 ms.)
     pub phase_loss_turn: u64,
     /// Steps the test's conditions must hold before it counts: two time constants of its
     /// filter.
@@ -61,7 +64,7 @@ pub(crate) struct MonitorConfig {
     pub stall_samples: u32,
     /// 90 % of the speed loop's current limit, per unit.
     pub stall_current: Pu,
-    /// Largest plausible change of the estimated speed per step (four samples), per unit.
+    /// Largest plausible change of the estimated speed per step (eight samples), per unit.
     pub accel_limit: Pu,
     /// Samples after entering the closed loop before the lock is judged (the estimate settles
     /// after a detection or a handover).
@@ -98,21 +101,21 @@ impl MonitorConfig {
         current_limit_pu: f64,
         health_limit: Pu,
     ) -> Option<Self> {
-        // The stuck-channel and phase-loss checks run on alternate samples, the motion checks
-        // on every fourth (see `Monitor::check`): their periods, counts and time constants are
-        // in steps of 2 T_s and 4 T_s.
+        // The phase-loss check runs on alternate samples, the other slow checks on every eighth
+        // (see `Monitor::check`): their periods, counts and time constants are in steps of
+        // 2 T_s and 8 T_s.
         let ts2 = 2.0 * ts;
-        let ts4 = 4.0 * ts;
+        let ts8 = 8.0 * ts;
         // τ/T to the nearest power of two, 1 to 2²⁰ steps of T.
         let pole = |tau: f64| follow_shift(tau / ts);
         let pole2 = |tau: f64| follow_shift(tau / ts2);
-        let pole4 = |tau: f64| follow_shift(tau / ts4);
+        let pole8 = |tau: f64| follow_shift(tau / ts8);
         Some(Self {
             sum_limit: pu_from_f64(0.15),
             ms1: pole(1e-3)?,
-            ms2: pole4(2e-3)?,
-            ms10: pole4(10e-3)?,
-            stuck_samples: libm::ceil(0.05 / ts4) as u32,
+            ms2: pole8(2e-3)?,
+            ms10: pole8(10e-3)?,
+            stuck_samples: libm::ceil(0.05 / ts8) as u32,
             turning: pu_from_f64(0.02),
             min_power: {
                 let m = 0.01 * 4096.0;
@@ -121,23 +124,23 @@ impl MonitorConfig {
             phase_loss_speed: pu_from_f64(
                 0.5 / (ts2 * libm::ldexp(1.0, pole2(5e-3)? as i32)) / omega_b,
             ),
-            // Σ ω_pu ω_b (2 T_s) = π/2, in bits of Pu.
+            // Σ ω_pu ω_b (2 T_s) = π, in bits of Pu.
             phase_loss_turn: libm::ceil(
-                core::f64::consts::FRAC_PI_2 / (omega_b * ts2) * (1u64 << 24) as f64,
+                core::f64::consts::PI / (omega_b * ts2) * (1u64 << 24) as f64,
             ) as u64,
             phase_loss_arm_samples: 2 << pole2(5e-3)?,
             ms5: pole2(5e-3)?,
-            stall_samples: libm::ceil(0.15 / ts4) as u32,
+            stall_samples: libm::ceil(0.15 / ts8) as u32,
             stall_current: pu_from_f64(0.9 * current_limit_pu),
             // The speed step over 4 T_s.
-            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts4 / omega_b),
+            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts8 / omega_b),
             settle_samples: libm::ceil(0.1 / ts) as u32,
             health_limit,
-            health_arm_samples: libm::ceil(0.04 / ts4) as u32,
+            health_arm_samples: libm::ceil(0.04 / ts8) as u32,
             steady_error: pu_from_f64(0.02),
             backwards_speed: pu_from_f64(0.1),
-            backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * ts4 / omega_b),
-            backwards_samples: libm::ceil(0.02 / ts4) as u32,
+            backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * ts8 / omega_b),
+            backwards_samples: libm::ceil(0.02 / ts8) as u32,
         })
     }
 }
@@ -188,9 +191,9 @@ impl Monitor {
     }
 
     /// One sample of every check; the first fault found. `slot`, the drive's sample count
-    /// modulo four, chooses the slower checks: the stuck-channel and phase-loss ones on even
-    /// slots, the stall, driven-backwards and acceleration ones on slot 1, the health
-    /// figure's on slot 3.
+    /// modulo eight, chooses the slower checks: phase loss on even slots, the stuck channels
+    /// on slot 1, the health figure on slot 3, the stall, driven-backwards and acceleration
+    /// checks on slot 5; slot 7 none.
     pub fn check(
         &mut self,
         c: &MonitorConfig,
@@ -216,14 +219,14 @@ impl Monitor {
         } else {
             0
         };
-        // The slower checks take turns, so that no sample pays for all of them: phase loss on
-        // even samples (counts and filters in steps of two samples), the motion checks and
-        // the health figure with the stuck channels on alternate odd ones (in steps of four).
-        match slot & 3 {
-            1 => self.check_motion(c, s, speed),
-            3 => self
-                .check_health(c, s, e)
-                .or_else(|| self.check_stuck(c, &ph, speed)),
+        // The slower checks take turns, so that no sample pays for more than one: phase loss
+        // on even samples (counts and filters in steps of two samples), the others on one odd
+        // slot each (in steps of eight).
+        match slot & 7 {
+            1 => self.check_stuck(c, &ph, speed),
+            3 => self.check_health(c, s, e),
+            5 => self.check_motion(c, s, speed),
+            7 => None,
             _ => self.check_phase_loss(c, &ph, speed, s.running),
         }
     }
@@ -272,8 +275,8 @@ impl Monitor {
         None
     }
 
-    /// Stuck channel (slot 3 of four): the same bits for 50 ms while the rotor turns and
-    /// other phases change (compared with the reading four samples before).
+    /// Stuck channel (slot 1 of eight): the same bits for 50 ms while the rotor turns and
+    /// other phases change (compared with the reading eight samples before).
     #[inline(always)]
     fn check_stuck(&mut self, c: &MonitorConfig, ph: &[Pu; 3], speed: Pu) -> Option<Fault> {
         let turning = speed > c.turning;
@@ -302,8 +305,8 @@ impl Monitor {
         None
     }
 
-    /// Stall, driven backwards, and loss of lock from the estimate's acceleration (slot 1 of
-    /// four).
+    /// Stall, driven backwards, and loss of lock from the estimate's acceleration (slot 5 of
+    /// eight).
     fn check_motion(&mut self, c: &MonitorConfig, s: &Signals, speed: Pu) -> Option<Fault> {
         // Stall: at the current limit and far below the reference for 150 ms. "Below" along the
         // reference's direction: an estimate turning the other way (a lock lost through zero
@@ -366,7 +369,7 @@ impl Monitor {
         None
     }
 
-    /// Loss of lock from the estimator's health figure (slot 3 of four).
+    /// Loss of lock from the estimator's health figure (slot 3 of eight).
     fn check_health(&mut self, c: &MonitorConfig, s: &Signals, e: &AnyEstimator) -> Option<Fault> {
         // Loss of lock: the estimator's own figure of how badly its model explains the
         // measurements, filtered, once settled.

@@ -421,6 +421,8 @@ pub(crate) fn follow(y: Pu, x: Pu, k: u32) -> Pu {
 /// The shift `k` of [`follow`] for a time constant of `tau_steps` steps: its `2^k` the power of
 /// two nearest in the logarithm (`round(log2 τ)`), within 0..=20; `None` when `tau_steps` is not
 /// a positive finite number.
+// Out of line: its `log2` would otherwise be inlined into every configuration that uses it.
+#[inline(never)]
 pub(crate) fn follow_shift(tau_steps: f64) -> Option<u32> {
     let k = libm::round(libm::log2(tau_steps));
     k.is_finite().then_some(k.clamp(0.0, 20.0) as u32)

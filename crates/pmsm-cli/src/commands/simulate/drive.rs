@@ -158,6 +158,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     design.overmodulation = c.overmodulation;
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
+    if let Some(i) = c.light_load_id_a {
+        design.light_load_id_a = i;
+    }
     if let Some(g) = c.observer_gain {
         design.observer_gain_rad_s = g;
     }
