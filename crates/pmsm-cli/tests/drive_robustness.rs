@@ -276,9 +276,10 @@ fn the_plot_shows_no_angle_error_before_the_estimator_runs() {
     use pmsm_cli::commands::simulate::{draw, plotted_angle_error};
     use pmsm_core::DriveState;
     // Motor B from 137°: during the detection the estimate is not an estimate yet (the raw
-    // difference is about −2.4 rad); the plot leaves it out, and shows the closed loop's error.
+    // difference is about −2.4 rad), nor during the dead-time calibration that follows; the
+    // plot leaves them out, and shows the closed loop's error.
     let text = MOTOR_B_SHORT
-        .replace("duration_s = 0.8", "duration_s = 0.3")
+        .replace("duration_s = 0.8", "duration_s = 0.4")
         .replace("[speed_ref]", "[initial]\ntheta_e_deg = 137.0\n[speed_ref]");
     let sc = scenario_text("plot", &text);
     let run = run_scenario(&sc).unwrap();

@@ -206,6 +206,20 @@ impl DeadTimeConfig {
         })
     }
 
+    /// The same compensation with `V_dead` scaled by `scale` (Q4.28, `1 << 28` is one; within
+    /// `[0, 4]`, saturated): what the drive uses once it has measured the inverter's
+    /// distortion voltage at standstill (docs/drive.md, "dead-time calibration").
+    pub fn scaled(&self, scale: i32) -> Self {
+        let s = i64::from(scale.clamp(0, 4 << 28));
+        let apply = |x: i32| crate::num::sat_i32((i64::from(x) * s) >> 28);
+        Self {
+            // k < 0.1 (checked by `new`) times at most 4: below 1, inside Q1.31.
+            k_bus: Coef::from_bits(apply(self.k_bus.bits())),
+            v_const: Pu::from_bits(apply(self.v_const.to_bits())),
+            ..*self
+        }
+    }
+
     /// `V_dead` (eq. 8) for the measured bus `vdc`, per unit of `V_b`; zero for a bus at or
     /// below zero.
     pub fn v_dead(&self, vdc: Pu) -> Pu {
@@ -368,6 +382,22 @@ mod tests {
                 "{mode:?}"
             );
         }
+    }
+
+    /// A scaled compensation's `V_dead` against the f64 product, within 2 LSB, at 0, 0.5,
+    /// 0.998, 1, 1.5 and beyond the limit of 4.
+    #[test]
+    fn scaled_v_dead() {
+        let (c, base) = setup(DeadTimeMode::Both);
+        let vdc = base.voltage_pu(540.0);
+        let v = c.v_dead(vdc).to_bits() as f64;
+        for s in [0.0, 0.5, 0.998, 1.0, 1.5, 9.0] {
+            let bits = (s * (1u64 << 28) as f64).min(i32::MAX as f64) as i32;
+            let got = c.scaled(bits).v_dead(vdc).to_bits() as f64;
+            let want = v * s.min(4.0);
+            assert!((got - want).abs() <= 2.0, "{s}: {got} {want}");
+        }
+        assert_eq!(c.scaled(1 << 28), c);
     }
 
     #[test]

@@ -106,6 +106,10 @@ pub struct Control {
     /// compensation's band, at most a sixth of the current limit, with the current-model
     /// MRAS; 0 with the other estimators; 0 turns it off).
     pub light_load_id_a: Option<f64>,
+    /// Measure the inverter's distortion voltage at standstill before the run and scale the
+    /// dead-time compensation to it (`pmsm_core::DriveDesign::deadtime_calibration`; default
+    /// on when the compensation acts on the command and the drive is told a dead time).
+    pub deadtime_calibration: Option<bool>,
     /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
     /// default false).
     #[serde(default)]

@@ -49,11 +49,17 @@ pub const LIGHT_LOAD_BANDS: f64 = 3.0;
 /// Largest default light-load current, as a fraction of the current limit.
 pub const LIGHT_LOAD_MAX_PER_LIMIT: f64 = 1.0 / 6.0;
 
+/// Largest light-load current a calibrated dead time raises it to, as a fraction of the
+/// current limit ([`LightLoadConfig::scaled`]).
+pub const LIGHT_LOAD_RAISED_PER_LIMIT: f64 = 0.2;
+
 /// The light-load current's configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightLoadConfig {
     /// `I_LL`, per unit; zero: off.
     current: Pu,
+    /// The largest `I_LL` a calibrated dead time may raise it to ([`LightLoadConfig::scaled`]).
+    cap: Pu,
     /// `ω_f`, [`Pu`] bits, at least 2¹² (2⁻¹² pu).
     fade: i32,
     /// `I_LL/ω_f` in [`Pu`] bits of current per 2⁻¹² pu of speed: `k (min(|ω|, ω_f) ≫ 12)`
@@ -67,6 +73,7 @@ impl LightLoadConfig {
     /// Off.
     pub const OFF: Self = Self {
         current: Pu::ZERO,
+        cap: Pu::ZERO,
         fade: 1 << 12,
         per_speed: 0,
         shift: 0,
@@ -74,13 +81,14 @@ impl LightLoadConfig {
 
     /// `I_LL = current_a` (A peak; 0 turns it off), full from the electrical speed
     /// `fade_rad_s` up (0: at every speed), in the bases `base`, updated every `every`
-    /// samples.
+    /// samples; a calibrated dead time may raise it up to `cap_a`.
     ///
     /// Errors: [`ConfigError::Param`] for `light_load_id_a` outside `[0, 10 I_b]` or a
     /// negative `fade_rad_s`.
     pub fn new(
         current_a: f64,
         fade_rad_s: f64,
+        cap_a: f64,
         base: &PerUnit,
         every: u32,
     ) -> Result<Self, ConfigError> {
@@ -94,6 +102,7 @@ impl LightLoadConfig {
         let fade_units = libm::round(fade / base.omega_e_rad_s * 4096.0).clamp(1.0, 1e9);
         Ok(Self {
             current,
+            cap: pu_from_f64(cap_a.max(i) / base.current_a),
             fade: (fade_units as i32).saturating_mul(1 << 12),
             per_speed: libm::round(current.to_bits() as f64 / fade_units) as i32,
             shift: follow_shift(LIGHT_LOAD_FILTER_S / (base.sample_s * f64::from(every)))
@@ -104,6 +113,27 @@ impl LightLoadConfig {
     /// `I_LL`, per unit (zero: off).
     pub fn current(&self) -> Pu {
         self.current
+    }
+
+    /// The configuration for an inverter whose `V_dead` is `scale` (Q4.28) times the one it
+    /// was designed for (the dead-time calibration's): `I_LL` and `ω_f` raised in proportion
+    /// when `scale` > 1 (the error left to average out grows with `V_dead`; motor B with 3 µs
+    /// of dead time for the 2 µs it was told needed 0.7 A, not 0.57 A), `I_LL` at most the
+    /// cap; unchanged otherwise.
+    pub fn scaled(&self, scale: i32) -> Self {
+        if scale <= 1 << 28 || self.current == Pu::ZERO {
+            return *self;
+        }
+        let s = i64::from(scale.min(4 << 28));
+        let up = |x: i32| crate::num::sat_i32((i64::from(x) * s) >> 28);
+        let current = up(self.current.to_bits()).min(self.cap.to_bits());
+        let fade = up(self.fade);
+        Self {
+            current: Pu::from_bits(current),
+            fade,
+            per_speed: current / (fade >> 12).max(1),
+            ..*self
+        }
     }
 
     /// The default `ω_f`, electrical rad/s: where the EMF `ψ ω_f` is `(8/3) V_dead` (twice the
@@ -187,7 +217,7 @@ mod tests {
     fn light_load_current_against_reference() {
         let base = PerUnit::new(&motor_b(), &inverter_b(), 14e3).unwrap();
         let (i_ll, fade) = (0.57, 130.0);
-        let c = LightLoadConfig::new(i_ll, fade, &base, 8).unwrap();
+        let c = LightLoadConfig::new(i_ll, fade, 1.0, &base, 8).unwrap();
         let i_ll_pu = i_ll / base.current_a;
         let fade_pu = fade / base.omega_e_rad_s;
         let mut worst: f64 = 0.0;
@@ -223,9 +253,9 @@ mod tests {
         let frac = l.level.to_num::<f64>() / (2.0 * i_ll_pu);
         assert!((0.45..0.8).contains(&frac), "{frac}");
         // Beyond the range: a named error.
-        assert!(LightLoadConfig::new(-1.0, fade, &base, 8).is_err());
-        assert!(LightLoadConfig::new(100.0 * base.current_a, fade, &base, 8).is_err());
-        assert!(LightLoadConfig::new(i_ll, -1.0, &base, 8).is_err());
+        assert!(LightLoadConfig::new(-1.0, fade, 1.0, &base, 8).is_err());
+        assert!(LightLoadConfig::new(100.0 * base.current_a, fade, 1.0, &base, 8).is_err());
+        assert!(LightLoadConfig::new(i_ll, -1.0, 1.0, &base, 8).is_err());
     }
 
     #[test]

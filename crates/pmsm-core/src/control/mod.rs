@@ -22,7 +22,8 @@ pub use flux::{
     FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,
 };
 pub use light_load::{
-    LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT, LightLoad, LightLoadConfig,
+    LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT, LIGHT_LOAD_RAISED_PER_LIMIT,
+    LightLoad, LightLoadConfig,
 };
 pub use pi::{Pi, PiConfig, PiOutput};
 pub use speed::{SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};

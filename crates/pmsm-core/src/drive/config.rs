@@ -198,6 +198,11 @@ pub struct DriveDesign {
     /// the back-EMF estimators and for an inverter without dead
     /// time.
     pub light_load_id_a: f64,
+    /// Measure the inverter's distortion voltage at standstill, between the rotor's angle
+    /// found (detection or alignment) and the run, and scale the dead-time compensation to it
+    /// (docs/drive.md, "dead-time calibration"; 40 ms). Default: on for the current-model
+    /// MRAS when the compensation acts on the command and the inverter has a dead time.
+    pub deadtime_calibration: bool,
 }
 
 /// Longest PWM update delay the drive compensates, control samples.
@@ -243,6 +248,12 @@ impl DriveDesign {
             flux: FluxDesign::default(),
             overmodulation: false,
             pwm_delay_samples: 0,
+            // The current-model MRAS runs from standstill, where the compensation's error is
+            // its error; the back-EMF estimators hand over at a tenth of rated speed, where
+            // the EMF dwarfs it.
+            deadtime_calibration: !estimator.needs_open_loop_start()
+                && deadtime.mode.compensates_command()
+                && inverter.dead_time_s > 0.0,
             // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
             // oscillate at no load; a d current switched in at their handover disturbed an NLO
             // start of the random family.
@@ -329,6 +340,8 @@ pub struct DriveConfig {
     pub(crate) mid_frame_k: i32,
     /// The light-load d-axis current ([`DriveDesign::light_load_id_a`]).
     pub(crate) light_load: LightLoadConfig,
+    /// The dead-time calibration at the alignment's end ([`DriveDesign::deadtime_calibration`]).
+    pub(crate) calibration: super::calibrate::CalibrationConfig,
     /// Declared last: declared before the fields above, its growth by two words moved them
     /// past the Cortex-M0's short load offsets (15 instructions more in the step's worst case).
     pub(crate) flux: FluxConfig,
@@ -542,10 +555,26 @@ impl DriveConfig {
                 vdc_max: pu_from_f64(p.vdc_max_v / base.voltage_v),
             },
             flux,
+            // I/2 then I (the alignment's and the open loop's current last: a rotor just
+            // pulled into place and held at half of it for 20 ms settles again), each 10 ms to
+            // settle (seven time constants of the default current loops) and 10 ms to average.
+            calibration: if design.deadtime_calibration
+                && design.deadtime.mode.compensates_command()
+            {
+                let i = ol.current_a / base.current_a;
+                super::calibrate::CalibrationConfig {
+                    levels: [pu_from_f64(0.5 * i), pu_from_f64(i)],
+                    settle: libm::ceil(0.01 / ts) as u32,
+                    average: (libm::ceil(0.01 / ts) as u32).min(super::calibrate::MAX_AVERAGE),
+                }
+            } else {
+                super::calibrate::CalibrationConfig::default()
+            },
             // Updated every eighth sample (`Drive::speed_loop`).
             light_load: LightLoadConfig::new(
                 design.light_load_id_a,
                 LightLoadConfig::default_fade_rad_s(motor.flux_wb, deadtime.v_dead_nominal_v),
+                crate::control::LIGHT_LOAD_RAISED_PER_LIMIT * design.speed.current_limit_a,
                 &base,
                 8,
             )?,

@@ -20,6 +20,7 @@
 //! one), for which the voltage is turned further and the estimator given the delayed voltage
 //! (docs/drive.md, PWM update delay).
 
+mod calibrate;
 mod codes;
 mod config;
 mod interface;
@@ -88,6 +89,10 @@ pub struct Drive {
     flux: FluxController,
     /// The light-load d-axis current.
     light_load: LightLoad,
+    /// The dead-time calibration's progress.
+    calibration: calibrate::Calibration,
+    /// The compensation's `V_dead` against the configured one, Q4.28 (the calibration's).
+    deadtime_scale: i32,
     /// The slot of this sample (0–7): the speed loop and the d-axis reference's updates take
     /// turns, and so do the monitor's slower checks (modulo four), so that no sample pays for
     /// all of them.
@@ -128,6 +133,8 @@ impl Drive {
                 f
             },
             light_load: LightLoad::default(),
+            calibration: calibrate::Calibration::default(),
+            deadtime_scale: calibrate::SCALE_ONE,
             slot: 0,
             since_trip: 0,
         }
@@ -198,6 +205,12 @@ impl Drive {
         self.speed_ref.min(max).max(max.saturating_neg())
     }
 
+    /// The dead-time compensation's `V_dead` against the configured one, per unit (one until
+    /// the calibration at a start measured it; docs/drive.md, "dead-time calibration").
+    pub fn deadtime_scale(&self) -> Pu {
+        Pu::from_bits(self.deadtime_scale >> 4)
+    }
+
     /// The field-weakening offset of the d-axis reference (≤ 0; zero below base speed).
     pub fn field_weakening(&self) -> Pu {
         self.flux.delta()
@@ -212,6 +225,7 @@ impl Drive {
         self.speed_ref_run = self.run_speed_ref();
         self.current.reset();
         self.monitor.reset();
+        self.calibration = calibrate::Calibration::default();
         self.v_est = AlphaBeta::default();
         self.v_line = Default::default();
         self.state = match self.config.design.startup {
@@ -346,7 +360,7 @@ impl Drive {
         }
         let setpoint = match self.state {
             DriveState::Ipd => return self.ipd_step(i, input.vdc),
-            DriveState::Align => self.align(i.beta),
+            DriveState::Align => self.align(i.beta, input.vdc),
             DriveState::OpenLoop => match self.open_loop(&estimate) {
                 Ok(setpoint) => setpoint,
                 Err(fault) => return self.trip(fault),
@@ -411,7 +425,7 @@ impl Drive {
             Some(Err(f)) => self.trip(Fault::InitialPosition(f)),
             Some(Ok(r)) => {
                 self.ipd_result = Some(r);
-                self.state = self.rotor_found(r.theta);
+                self.state = self.detected(r.theta);
                 self.v_est = AlphaBeta::default();
                 self.telemetry.estimate = self.estimator.estimate();
                 DriveOutput {
@@ -422,13 +436,73 @@ impl Drive {
         }
     }
 
+    /// The detection found the rotor at `theta`: the dead-time calibration there first, when
+    /// on, else the start from it.
+    #[cold]
+    #[inline(never)]
+    fn detected(&mut self, theta: Angle) -> DriveState {
+        if self.config.calibration.enabled() {
+            self.open_loop = OpenLoop::aligned_at(theta, &self.config);
+            self.current.reset();
+            DriveState::Align
+        } else {
+            self.rotor_found(theta)
+        }
+    }
+
     /// Alignment: a d-axis current along α, the β winding shorted (`startup`); at its end the
-    /// rotor is at `θ = 0`.
+    /// rotor is at `θ = 0`. Then, or after a detection, the dead-time calibration.
     #[inline(always)]
-    fn align(&mut self, i_beta: Pu) -> Setpoint {
+    fn align(&mut self, i_beta: Pu, vdc: Pu) -> Setpoint {
+        let calibrating = self.config.calibration.enabled();
+        if calibrating && self.open_loop.align_done(&self.config) {
+            return self.calibrate(vdc);
+        }
         let (theta, i_ref) = self.open_loop.align_frame(&self.config, i_beta);
-        if self.open_loop.align_done(&self.config) {
+        if !calibrating && self.open_loop.align_done(&self.config) {
             self.state = self.rotor_found(Angle::ZERO);
+            self.telemetry.estimate = self.estimator.estimate();
+        }
+        Setpoint {
+            theta,
+            omega: Pu::ZERO,
+            i_ref,
+            frame: None,
+        }
+    }
+
+    /// One sample of the dead-time calibration (`calibrate`): a d current along the rotor's
+    /// angle through the current loops; at its end the compensation is scaled to what the
+    /// inverter does and the drive starts from that angle.
+    #[cold]
+    #[inline(never)]
+    fn calibrate(&mut self, vdc: Pu) -> Setpoint {
+        let c = &self.config.calibration;
+        let theta = self.open_loop.align_angle();
+        let sc = theta.sin_cos();
+        let i_ref = Dq {
+            d: self.calibration.reference(c),
+            q: Pu::ZERO,
+        };
+        // The last sample's command and current in this frame (the rotor stands still), and
+        // the compensation's vector for this reference.
+        let y = park(self.telemetry.v, sc).d;
+        let i = self.telemetry.i_dq.d;
+        let v_dt = self.config.deadtime.error_vector_cached(
+            inverse_park(i_ref, sc),
+            vdc,
+            &mut self.deadtime_bus,
+        );
+        let d = park(v_dt, sc).d;
+        if let Some(s) = self.calibration.record(c, y, i, d) {
+            // Relative to the compensation in use: a second start refines the first.
+            self.deadtime_scale =
+                crate::num::sat_i32((i64::from(self.deadtime_scale) * i64::from(s)) >> 28)
+                    .clamp(0, 4 * calibrate::SCALE_ONE);
+            self.config.deadtime = self.config.deadtime.scaled(s);
+            self.config.light_load = self.config.light_load.scaled(s);
+            self.deadtime_bus = DeadTimeBus::default();
+            self.state = self.rotor_found(theta);
             self.telemetry.estimate = self.estimator.estimate();
         }
         Setpoint {

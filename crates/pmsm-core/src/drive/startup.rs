@@ -79,6 +79,21 @@ impl OpenLoop {
         Self::default()
     }
 
+    /// The alignment's end at the angle `theta` already known (the dead-time calibration
+    /// after an initial position detection: no pull, the rotor is there).
+    pub fn aligned_at(theta: Angle, c: &DriveConfig) -> Self {
+        Self {
+            theta,
+            count: c.open_loop.align_samples,
+            ..Self::default()
+        }
+    }
+
+    /// The angle the alignment holds: zero, or the one detected.
+    pub fn align_angle(&self) -> Angle {
+        self.theta
+    }
+
     /// The alignment's frame (θ = 0) and current reference `(I, i_β)`, `I` ramped over the
     /// first half of the alignment, `i_β` the measured current (zero q voltage: the module
     /// docs); counts the sample.

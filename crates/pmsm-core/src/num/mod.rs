@@ -386,6 +386,11 @@ impl<const F: u32> Coef<F> {
         self.0
     }
 
+    /// The coefficient of the raw bits `bits` (`value = bits · 2^−F`).
+    pub const fn from_bits(bits: i32) -> Self {
+        Self(bits)
+    }
+
     /// The value as a float (exact).
     pub fn to_f64(self) -> f64 {
         libm::ldexp(self.0 as f64, -(F as i32))

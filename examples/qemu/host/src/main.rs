@@ -27,7 +27,7 @@ const DEFAULT_STEPS: usize = 100;
 
 /// Default number of steps of the drive case (0.19 s at 14 kHz: initial position detection,
 /// the ramp to 800 r/min, a load step).
-const DEFAULT_DRIVE_STEPS: usize = 2700;
+const DEFAULT_DRIVE_STEPS: usize = 2650;
 
 fn main() -> ExitCode {
     match run() {

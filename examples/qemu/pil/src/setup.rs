@@ -2,7 +2,7 @@
 
 use pmsm_core::{AoConfig, EstimatorKind, MrasEmfConfig, NloConfig};
 use pmsm_core::{ConfigError, InverterParams, MotorParams, PerUnit};
-use pmsm_core::{DriveConfig, DriveOptions, StartupMode};
+use pmsm_core::{DriveConfig, DriveDesign, StartupMode};
 
 /// Control sample rate, Hz.
 pub const SAMPLE_HZ: f64 = 20e3;
@@ -118,14 +118,16 @@ impl Setup {
         estimator: EstimatorKind,
         startup: StartupMode,
     ) -> Result<DriveConfig, ConfigError> {
-        let options = DriveOptions {
-            estimator,
-            startup: Some(startup),
-            // As the board (pmsm-stm32's TIM1 loads the duties one period later): the step
-            // pays for the delay's compensation.
-            pwm_delay_samples: Some(1),
-            ..DriveOptions::default()
-        };
-        DriveConfig::from_params(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ, options)
+        let base = PerUnit::new(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ)?;
+        let mut design = DriveDesign::default_for(&self.motor, &self.inverter, &base, estimator);
+        design.startup = startup;
+        // As the board (pmsm-stm32's TIM1 loads the duties one period later): the step pays
+        // for the delay's compensation.
+        design.pwm_delay_samples = 1;
+        // The dead-time calibration (40 ms at standstill, before the run; the told dead time
+        // is the plant's, so it changes nothing) is left out: the recording, which the
+        // micro:bit's flash holds no longer, keeps its closed-loop steps.
+        design.deadtime_calibration = false;
+        DriveConfig::new(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ, design)
     }
 }

@@ -158,6 +158,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     design.overmodulation = c.overmodulation;
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
+    if let Some(on) = c.deadtime_calibration {
+        design.deadtime_calibration = on;
+    }
     if let Some(i) = c.light_load_id_a {
         design.light_load_id_a = i;
     }

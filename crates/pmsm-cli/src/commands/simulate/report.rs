@@ -112,6 +112,12 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
             "  initial position: detected {est:.1}°, true {truth:.1}° (error {err:+.1}° electrical)"
         );
     }
+    if (result.deadtime_scale - 1.0).abs() > 1e-9 {
+        println!(
+            "  dead-time calibration: V_dead {:.3} times the one the drive was told",
+            result.deadtime_scale
+        );
+    }
     print_phases(&phases(sc, &result.rows));
     if let Some((t, asked, used)) = result.speed_ref_limited {
         println!(

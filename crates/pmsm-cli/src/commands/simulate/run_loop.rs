@@ -86,6 +86,9 @@ pub struct Run {
     pub speed_ref_limited: Option<(f64, f64, f64)>,
     /// The start-up the drive used (`auto` resolved).
     pub startup: pmsm_core::StartupMode,
+    /// The dead-time compensation's `V_dead` against the one the drive was told, at the
+    /// end (the calibration's; 1 without one).
+    pub deadtime_scale: f64,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -168,6 +171,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         recorder,
         speed_ref_limited,
         startup,
+        deadtime_scale: setup.drive.deadtime_scale().to_num::<f64>(),
     })
 }
 
