@@ -29,95 +29,89 @@ struct Case {
 
 const SWITCHING_2US: &str = "dead_time_s = 2e-6\nmodel = \"switching\"";
 
+/// Motor B to 800 r/min, rated load from 1.0 s, on the inverter `inverter`.
+const fn at_800(label: &'static str, inverter: &'static str, light_load_a: Option<f64>) -> Case {
+    Case {
+        label,
+        inverter,
+        light_load_a,
+        rpm: 800.0,
+        ramp_end_s: 0.6,
+        load_s: Some(1.0),
+        duration_s: 1.6,
+        no_load: (0.7, 1.0),
+        loaded: Some((1.2, 1.6)),
+    }
+}
+
+/// Motor B to `rpm` (reached at `ramp_end_s`), no load, measured over `no_load`.
+const fn unloaded(
+    label: &'static str,
+    light_load_a: Option<f64>,
+    rpm: f64,
+    ramp_end_s: f64,
+    duration_s: f64,
+    no_load: (f64, f64),
+) -> Case {
+    Case {
+        label,
+        inverter: SWITCHING_2US,
+        light_load_a,
+        rpm,
+        ramp_end_s,
+        load_s: None,
+        duration_s,
+        no_load,
+        loaded: None,
+    }
+}
+
 const CASES: [Case; 8] = [
-    Case {
-        label: "800 r/min, switching 2 µs, light-load current off (before)",
-        inverter: SWITCHING_2US,
-        light_load_a: Some(0.0),
-        rpm: 800.0,
-        ramp_end_s: 0.6,
-        load_s: Some(1.0),
-        duration_s: 1.6,
-        no_load: (0.7, 1.0),
-        loaded: Some((1.2, 1.6)),
-    },
-    Case {
-        label: "800 r/min, switching 2 µs (default)",
-        inverter: SWITCHING_2US,
-        light_load_a: None,
-        rpm: 800.0,
-        ramp_end_s: 0.6,
-        load_s: Some(1.0),
-        duration_s: 1.6,
-        no_load: (0.7, 1.0),
-        loaded: Some((1.2, 1.6)),
-    },
-    Case {
-        label: "800 r/min, averaged, sign_band_a = 0",
-        inverter: "dead_time_s = 2e-6\nmodel = \"averaged\"\nsign_band_a = 0.0",
-        light_load_a: None,
-        rpm: 800.0,
-        ramp_end_s: 0.6,
-        load_s: Some(1.0),
-        duration_s: 1.6,
-        no_load: (0.7, 1.0),
-        loaded: Some((1.2, 1.6)),
-    },
-    Case {
-        label: "800 r/min, switching 1 µs, drive told 2 µs",
-        inverter: "dead_time_s = 1e-6\nmodel = \"switching\"",
-        light_load_a: None,
-        rpm: 800.0,
-        ramp_end_s: 0.6,
-        load_s: Some(1.0),
-        duration_s: 1.6,
-        no_load: (0.7, 1.0),
-        loaded: Some((1.2, 1.6)),
-    },
-    Case {
-        label: "800 r/min, switching 3 µs, drive told 2 µs",
-        inverter: "dead_time_s = 3e-6\nmodel = \"switching\"",
-        light_load_a: None,
-        rpm: 800.0,
-        ramp_end_s: 0.6,
-        load_s: Some(1.0),
-        duration_s: 1.6,
-        no_load: (0.7, 1.0),
-        loaded: Some((1.2, 1.6)),
-    },
-    Case {
-        label: "30 r/min, switching 2 µs (default)",
-        inverter: SWITCHING_2US,
-        light_load_a: None,
-        rpm: 30.0,
-        ramp_end_s: 0.6,
-        load_s: None,
-        duration_s: 1.5,
-        no_load: (0.8, 1.5),
-        loaded: None,
-    },
-    Case {
-        label: "3000 r/min, switching 2 µs, light-load current off",
-        inverter: SWITCHING_2US,
-        light_load_a: Some(0.0),
-        rpm: 3000.0,
-        ramp_end_s: 1.0,
-        load_s: None,
-        duration_s: 1.6,
-        no_load: (1.2, 1.6),
-        loaded: None,
-    },
-    Case {
-        label: "3000 r/min, switching 2 µs (default)",
-        inverter: SWITCHING_2US,
-        light_load_a: None,
-        rpm: 3000.0,
-        ramp_end_s: 1.0,
-        load_s: None,
-        duration_s: 1.6,
-        no_load: (1.2, 1.6),
-        loaded: None,
-    },
+    at_800(
+        "800 r/min, switching 2 µs, light-load current off (before)",
+        SWITCHING_2US,
+        Some(0.0),
+    ),
+    at_800("800 r/min, switching 2 µs (default)", SWITCHING_2US, None),
+    at_800(
+        "800 r/min, averaged, sign_band_a = 0",
+        "dead_time_s = 2e-6\nmodel = \"averaged\"\nsign_band_a = 0.0",
+        None,
+    ),
+    at_800(
+        "800 r/min, switching 1 µs, drive told 2 µs",
+        "dead_time_s = 1e-6\nmodel = \"switching\"",
+        None,
+    ),
+    at_800(
+        "800 r/min, switching 3 µs, drive told 2 µs",
+        "dead_time_s = 3e-6\nmodel = \"switching\"",
+        None,
+    ),
+    unloaded(
+        "30 r/min, switching 2 µs (default)",
+        None,
+        30.0,
+        0.6,
+        1.5,
+        (0.8, 1.5),
+    ),
+    unloaded(
+        "3000 r/min, switching 2 µs, light-load current off",
+        Some(0.0),
+        3000.0,
+        1.0,
+        1.6,
+        (1.2, 1.6),
+    ),
+    unloaded(
+        "3000 r/min, switching 2 µs (default)",
+        None,
+        3000.0,
+        1.0,
+        1.6,
+        (1.2, 1.6),
+    ),
 ];
 
 /// The scenario file of `case`: motor B from standstill after initial position detection,

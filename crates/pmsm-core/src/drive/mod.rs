@@ -463,12 +463,7 @@ impl Drive {
             self.state = self.rotor_found(Angle::ZERO);
             self.telemetry.estimate = self.estimator.estimate();
         }
-        Setpoint {
-            theta,
-            omega: Pu::ZERO,
-            i_ref,
-            frame: None,
-        }
+        Setpoint::standstill(theta, i_ref)
     }
 
     /// One sample of the dead-time calibration (`calibrate`): a d current along the rotor's
@@ -505,12 +500,7 @@ impl Drive {
             self.state = self.rotor_found(theta);
             self.telemetry.estimate = self.estimator.estimate();
         }
-        Setpoint {
-            theta,
-            omega: Pu::ZERO,
-            i_ref,
-            frame: None,
-        }
+        Setpoint::standstill(theta, i_ref)
     }
 
     /// The open-loop start: an imposed frame accelerating to the handover speed, where the
@@ -889,6 +879,18 @@ struct Setpoint {
     i_ref: Dq,
     /// The estimator's own frame at `theta`, when it computed one ([`Frame`]).
     frame: Option<Frame>,
+}
+
+impl Setpoint {
+    /// A frame standing still at `theta` with the reference `i_ref` (alignment, calibration).
+    fn standstill(theta: Angle, i_ref: Dq) -> Self {
+        Self {
+            theta,
+            omega: Pu::ZERO,
+            i_ref,
+            frame: None,
+        }
+    }
 }
 
 /// The frame `k/2 + 1` steps on from `now`, extrapolated along its step `next − now`:
