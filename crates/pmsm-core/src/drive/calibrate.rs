@@ -92,7 +92,8 @@ impl Calibration {
             return None;
         }
         let n = c.average.clamp(1, MAX_AVERAGE) as i32;
-        let means = self.sums.map(|s| s / n);
+        // `checked_div`: no panic path (n ≥ 1).
+        let means = self.sums.map(|s| s.checked_div(n).unwrap_or(0));
         if self.level == 0 {
             *self = Self {
                 level: 1,
@@ -117,9 +118,15 @@ fn scale(a: [i32; 3], b: [i32; 3]) -> i32 {
     if di.abs() < 1 << 10 || d <= 0 {
         return SCALE_ONE;
     }
-    let v_true_g = (ya * ib - yb * ia) / di;
+    // `checked_div`: no panic path (di and d are away from zero here).
+    let Some(v_true_g) = (ya * ib - yb * ia).checked_div(di) else {
+        return SCALE_ONE;
+    };
     // (V_true g / D) · 2²⁸, V_true g within ±2²² (64 pu).
-    let s = ((v_true_g.clamp(-(1 << 22), 1 << 22) << 28) / d).clamp(0, 4 << 28) as i32;
+    let Some(s) = (v_true_g.clamp(-(1 << 22), 1 << 22) << 28).checked_div(d) else {
+        return SCALE_ONE;
+    };
+    let s = s.clamp(0, 4 << 28) as i32;
     if (s - SCALE_ONE).abs() <= SCALE_DEAD_BAND {
         SCALE_ONE
     } else {

@@ -94,8 +94,8 @@ pub struct Drive {
     /// The compensation's `V_dead` against the configured one, Q4.28 (the calibration's).
     deadtime_scale: i32,
     /// The slot of this sample (0–7): the speed loop and the d-axis reference's updates take
-    /// turns, and so do the monitor's slower checks (modulo four), so that no sample pays for
-    /// all of them.
+    /// turns, and so do the monitor's slower checks (one odd slot each) and the light-load
+    /// update (slot 7), so that no sample pays for all of them.
     slot: u8,
     /// Samples since the drive tripped into outputs off ([`Drive::faulted`]).
     since_trip: u32,
