@@ -4,7 +4,7 @@
 //! docs/PERFORMANCE.md and the before/after figure docs/figures/no-load-motor-b.svg.
 
 use anyhow::{Result, bail};
-use pmsm_cli::commands::simulate::stats::{rms_angle, window};
+use pmsm_cli::commands::simulate::stats::{rms_angle, std_dev, window};
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_cli::{plot, scenario_file};
 use std::path::Path;
@@ -153,21 +153,14 @@ fn run_case(case: &Case) -> Result<(Vec<Row>, f64)> {
     Ok((run.rows, run.deadtime_scale))
 }
 
-/// Population standard deviation of `f` over `rows`.
-fn sd(rows: &[&Row], f: impl Fn(&Row) -> f64) -> f64 {
-    let n = rows.len().max(1) as f64;
-    let mean = rows.iter().map(|r| f(r)).sum::<f64>() / n;
-    (rows.iter().map(|r| (f(r) - mean).powi(2)).sum::<f64>() / n).sqrt()
-}
-
 /// Estimated-speed σ, true-speed σ (r/min), `i_q*` σ (A), angle rms (rad), mean speed
 /// error (r/min) over `rows`.
 fn figures(rows: &[&Row]) -> [f64; 5] {
     let n = rows.len().max(1) as f64;
     [
-        sd(rows, |r| r.speed_est_rpm),
-        sd(rows, |r| r.speed_rpm),
-        sd(rows, |r| r.i_q_ref_a),
+        std_dev(rows, |r| r.speed_est_rpm),
+        std_dev(rows, |r| r.speed_rpm),
+        std_dev(rows, |r| r.i_q_ref_a),
         rms_angle(rows),
         rows.iter()
             .map(|r| r.speed_rpm - r.speed_ref_rpm)

@@ -2,7 +2,7 @@
 //! (Fig. 6, 7 and §3), and motor A driven by the NLO from standstill; each a test with numeric bounds, run
 //! through `pmsm simulate`'s own code on the shipped scenario files and variants of them.
 
-use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, window};
+use pmsm_cli::commands::simulate::stats::{max_angle, rms_angle, speed_err, std_dev, window};
 use pmsm_cli::commands::simulate::{Run, run_scenario};
 use pmsm_core::DriveState;
 
@@ -49,16 +49,6 @@ fn rated_load_at_800_rpm_from_several_angles() {
     }
 }
 
-/// Population standard deviation of `f` over `rows`.
-fn sd(
-    rows: &[&pmsm_cli::commands::simulate::Row],
-    f: impl Fn(&pmsm_cli::commands::simulate::Row) -> f64,
-) -> f64 {
-    let n = rows.len().max(1) as f64;
-    let mean = rows.iter().map(|r| f(r)).sum::<f64>() / n;
-    (rows.iter().map(|r| (f(r) - mean).powi(2)).sum::<f64>() / n).sqrt()
-}
-
 /// No load at 800 r/min on the switching inverter (0.7–1.0 s of Fig. 6's run), with the
 /// light-load d current (docs/drive.md, "light load"): the estimated speed within σ 5 r/min,
 /// the true speed 1.5 r/min, `i_q*` 0.15 A (without it: 13.4 r/min, 2.3 r/min, 0.25 A).
@@ -72,9 +62,9 @@ fn no_load_at_800_rpm_is_quiet() {
     no_fault(&run);
     let w = window(&run.rows, 0.7, 1.0);
     let (est, truth, iq) = (
-        sd(&w, |r| r.speed_est_rpm),
-        sd(&w, |r| r.speed_rpm),
-        sd(&w, |r| r.i_q_ref_a),
+        std_dev(&w, |r| r.speed_est_rpm),
+        std_dev(&w, |r| r.speed_rpm),
+        std_dev(&w, |r| r.i_q_ref_a),
     );
     let id = w.iter().map(|r| r.i_dq_a[0]).sum::<f64>() / w.len() as f64;
     println!(

@@ -104,7 +104,7 @@ impl LightLoadConfig {
             current,
             cap: pu_from_f64(cap_a.max(i) / base.current_a),
             fade: (fade_units as i32).saturating_mul(1 << 12),
-            per_speed: libm::round(current.to_bits() as f64 / fade_units) as i32,
+            per_speed: per_speed(current.to_bits(), fade_units as i32),
             shift: follow_shift(LIGHT_LOAD_FILTER_S / (base.sample_s * f64::from(every)))
                 .unwrap_or(0),
         })
@@ -131,7 +131,7 @@ impl LightLoadConfig {
         Self {
             current: Pu::from_bits(current),
             fade,
-            per_speed: current / (fade >> 12).max(1),
+            per_speed: per_speed(current, fade >> 12),
             ..*self
         }
     }
@@ -157,6 +157,13 @@ impl LightLoadConfig {
             0.0
         }
     }
+}
+
+/// `I_LL/ω_f` of [`LightLoadConfig`]: `current` [`Pu`] bits over `fade_units` (ω_f in units of
+/// 2⁻¹² pu, taken at least one), rounded to nearest.
+fn per_speed(current: i32, fade_units: i32) -> i32 {
+    let (c, n) = (i64::from(current), i64::from(fade_units.max(1)));
+    ((2 * c + n) / (2 * n)) as i32
 }
 
 /// `|x|` in [`Pu`] bits, at most 2³⁰ (64 pu, the speed loop's largest limit).

@@ -200,8 +200,8 @@ pub struct DriveDesign {
     pub light_load_id_a: f64,
     /// Measure the inverter's distortion voltage at standstill, between the rotor's angle
     /// found (detection or alignment) and the run, and scale the dead-time compensation to it
-    /// (docs/drive.md, "dead-time calibration"; 40 ms). Default: on for the current-model
-    /// MRAS when the compensation acts on the command and the inverter has a dead time.
+    /// (docs/drive.md, "dead-time calibration"; 40 ms); it runs only when the compensation acts
+    /// on the command. Default: on for the current-model MRAS and an inverter with a dead time.
     pub deadtime_calibration: bool,
 }
 
@@ -250,10 +250,8 @@ impl DriveDesign {
             pwm_delay_samples: 0,
             // The current-model MRAS runs from standstill, where the compensation's error is
             // its error; the back-EMF estimators hand over at a tenth of rated speed, where
-            // the EMF dwarfs it.
-            deadtime_calibration: !estimator.needs_open_loop_start()
-                && deadtime.mode.compensates_command()
-                && inverter.dead_time_s > 0.0,
+            // the EMF dwarfs it. (`DriveConfig::new` runs it only with a compensated command.)
+            deadtime_calibration: !estimator.needs_open_loop_start() && inverter.dead_time_s > 0.0,
             // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
             // oscillate at no load; a d current switched in at their handover disturbed an NLO
             // start of the random family.

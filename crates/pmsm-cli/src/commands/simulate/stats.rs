@@ -24,6 +24,13 @@ pub fn rms_angle(rows: &[&Row]) -> f64 {
         .sqrt()
 }
 
+/// Population standard deviation of `f` over `rows` (0 for no rows).
+pub fn std_dev(rows: &[&Row], f: impl Fn(&Row) -> f64) -> f64 {
+    let n = rows.len().max(1) as f64;
+    let mean = rows.iter().map(|r| f(r)).sum::<f64>() / n;
+    (rows.iter().map(|r| (f(r) - mean).powi(2)).sum::<f64>() / n).sqrt()
+}
+
 /// Mean |speed − reference| / |reference| (0 for no rows).
 pub fn speed_err(rows: &[&Row]) -> f64 {
     rows.iter()
