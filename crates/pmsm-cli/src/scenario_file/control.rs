@@ -34,12 +34,11 @@ pub enum Startup {
     Known,
 }
 
-/// Default `[control] pwm_update_delay_periods`: 0 for now. pmsm-stm32's TIM1 has 1 (compare
-/// preload transferred at the update event of the counter's peak, where the ADC samples;
-/// docs/drive.md, PWM update delay). With 1 every test passes, but the current-model MRAS
-/// stalls on two fast random motors (`ω T_s` ≈ 0.07 at half rated speed), and the CI sample
-/// of `cargo xtask family` then misses its bar.
-pub const DEFAULT_PWM_UPDATE_DELAY_PERIODS: u32 = 0;
+/// Default `[control] pwm_update_delay_periods`: the delay of pmsm-stm32's TIM1
+/// ([`pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES`], one period: the compare preload is transferred
+/// at the update event of the counter's peak, where the ADC samples; docs/drive.md, PWM
+/// update delay), so that a simulated drive meets the timing of the board's.
+pub const DEFAULT_PWM_UPDATE_DELAY_PERIODS: u32 = pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES as u32;
 
 /// `[control]` of a scenario.
 #[derive(Clone, Debug, Deserialize)]

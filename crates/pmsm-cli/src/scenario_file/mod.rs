@@ -22,7 +22,7 @@
 //! dead_time_s = 1.5e-6             # what the drive's compensation assumes (default: the
 //!                                  # inverter's dead_time_s, which the plant keeps)
 //! pwm_update_delay_periods = 1     # the plant applies the duties 1 PWM period later
-//!                                  # (pmsm-stm32's TIM1; default 0)
+//!                                  # (pmsm-stm32's TIM1; the default)
 //! pwm_delay_compensation_periods = 1 # what the drive compensates (default: the plant's)
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0

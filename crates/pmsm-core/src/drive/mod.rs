@@ -405,6 +405,7 @@ impl Drive {
             omega_ref,
             iq_ref: self.iq_ref,
             running: self.state == DriveState::Run,
+            last: &self.telemetry,
         };
         self.monitor
             .check(&self.config.monitor, &signals, &self.estimator, self.slot)
