@@ -323,8 +323,9 @@ enum pmsm_fault_t
    */
   PMSM_FAULT_STALL = 8,
   /**
-   * The estimated speed changed faster than the motor can accelerate, or the estimator's
-   * health figure passed its limit: the estimator lost its lock; value 0.
+   * The estimated speed changed faster than the motor can accelerate, the estimator's
+   * health figure passed its limit, or the current loops lost their references in the
+   * estimated frame: the estimator lost its lock; value 0.
    */
   PMSM_FAULT_LOSS_OF_LOCK = 9,
   /**

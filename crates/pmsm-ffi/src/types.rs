@@ -133,8 +133,9 @@ pub enum pmsm_fault_t {
     /// The speed loop is at its current limit with the rotor far below the reference:
     /// stalled or locked; value 0.
     PMSM_FAULT_STALL = 8,
-    /// The estimated speed changed faster than the motor can accelerate, or the estimator's
-    /// health figure passed its limit: the estimator lost its lock; value 0.
+    /// The estimated speed changed faster than the motor can accelerate, the estimator's
+    /// health figure passed its limit, or the current loops lost their references in the
+    /// estimated frame: the estimator lost its lock; value 0.
     PMSM_FAULT_LOSS_OF_LOCK = 9,
     /// The firmware reported a control step that did not finish within its period
     /// (`pmsm_report_overrun`); value 0.

@@ -33,8 +33,9 @@ pub enum Fault {
     /// The speed loop is at its current limit and the rotor far below the reference: stalled
     /// or locked.
     Stall,
-    /// The estimated speed changes faster than the motor can accelerate: the estimator lost
-    /// its lock.
+    /// The estimator lost its lock: its speed changes faster than the motor can accelerate,
+    /// its health figure is beyond its limit in steady state, or the current loops no longer
+    /// hold their references in the estimated frame (docs/drive.md §3).
     LossOfLock,
     /// The control step did not finish within its period (reported by the binding).
     Overrun,
