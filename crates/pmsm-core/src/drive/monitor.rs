@@ -23,7 +23,7 @@
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
 //! | driven backwards | the speed loop at 90 % of its limit in the reference's direction, the estimated speed the other way beyond 0.1 pu and above a ceiling that starts at its value and falls at 1/16 of the motor's largest deceleration, for 20 ms | 20–40 ms |
 //! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu` (default 1.0 pu), from 100 ms after entering the closed loop, in steady state (40 ms at a constant reference with the estimate within 0.02 pu of it throughout, until the reference changes) | 10–20 ms |
-//! | loss of lock (current tracking) | `|i_d − i_d*| + |i_q − i_q*|` in the estimated frame, filtered over 10 ms (held while the modulator limits the voltage) above a third of the current limit, from 100 ms after entering the closed loop | 10–30 ms |
+//! | loss of lock (current tracking) | `|i_d − i_d*| + |i_q − i_q*|` in the estimated frame, filtered over 10 ms (held while the modulator limits the voltage) above a third of the current limit, from 100 ms after entering the closed loop | 10–50 ms |
 
 use super::{Fault, Telemetry};
 use crate::frames::Abc;
