@@ -10,6 +10,7 @@
 //! `--write` replaces the `## Random motor family` section of docs/PERFORMANCE.md.
 
 use anyhow::{Result, bail};
+use pmsm_cli::commands::simulate::stats::first_fault;
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_cli::scenario_file;
 use pmsm_core::DriveState;
@@ -385,7 +386,7 @@ fn phase_at(man: &Manoeuvre, t: f64) -> &'static str {
 }
 
 fn classify(rows: &[Row], m: &Motor, man: &Manoeuvre) -> Outcome {
-    let fault = rows.iter().find(|r| !r.fault().is_empty());
+    let fault = first_fault(rows);
     let t_fault = fault.map_or(f64::INFINITY, |r| r.t_s);
     // Silent: in the closed loop, the rotor off the reference the drive holds.
     let mut since: Option<f64> = None;

@@ -4,7 +4,7 @@
 //! docs/PERFORMANCE.md and the before/after figure docs/figures/no-load-motor-b.svg.
 
 use anyhow::{Result, bail};
-use pmsm_cli::commands::simulate::stats::{rms_angle, std_dev, window};
+use pmsm_cli::commands::simulate::stats::{self, rms_angle, std_dev, window};
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_cli::{plot, scenario_file};
 use std::path::Path;
@@ -170,9 +170,7 @@ fn figures(rows: &[&Row]) -> [f64; 5] {
 }
 
 fn first_fault(rows: &[Row]) -> Option<(f64, &'static str)> {
-    rows.iter()
-        .find(|r| !r.fault().is_empty())
-        .map(|r| (r.t_s, r.fault()))
+    stats::first_fault(rows).map(|r| (r.t_s, r.fault()))
 }
 
 /// The markdown section; `figure`: also the before/after figure into that directory.

@@ -3,7 +3,7 @@
 
 use anyhow::{Result, bail};
 use pmsm_cli::commands::simulate::run_scenario;
-use pmsm_cli::commands::simulate::stats::rms_angle;
+use pmsm_cli::commands::simulate::stats::{first_fault, rms_angle};
 use pmsm_cli::scenario_file;
 use pmsm_tests::signals::SplitMix;
 
@@ -80,7 +80,7 @@ pub fn run(n: usize) -> Result<()> {
             / rpm.abs();
         worst_rms = worst_rms.max(rms);
         worst_speed = worst_speed.max(speed);
-        let problem = match run.rows.iter().find(|r| !r.fault().is_empty()) {
+        let problem = match first_fault(&run.rows) {
             Some(r) => Some(format!("{} at {:.3} s", r.fault(), r.t_s)),
             None if rms > 0.2 || speed > 0.05 => Some(format!(
                 "lost the lock: {rms:.3} rad rms, speed error {:.1} %",

@@ -6,6 +6,7 @@
 // The values compared exactly are copied from the file, not computed.
 #![allow(clippy::float_cmp)]
 
+use pmsm_cli::commands::simulate::stats::first_fault;
 use pmsm_cli::commands::simulate::{build_drive, build_plant, run_scenario};
 use pmsm_cli::scenario_file;
 
@@ -60,7 +61,7 @@ fn the_drive_is_told_its_dead_time_apart_from_the_plant() {
         "dead_time_s = 2e-6\nsign_band_a = 0.0\n",
     );
     let run = run_scenario(&scenario_text("hard-run", &text)).unwrap();
-    if let Some(r) = run.rows.iter().find(|r| !r.fault().is_empty()) {
+    if let Some(r) = first_fault(&run.rows) {
         panic!("fault at {} s: {:?}", r.t_s, r.state);
     }
     let (est, truth) = run.ipd.expect("detected");
@@ -121,7 +122,7 @@ fn auto_start_up_aligns_a_surface_motor_and_detects_on_a_salient_one() {
     assert_eq!(sc.control.startup, scenario_file::Startup::Auto);
     let run = run_scenario(&sc).unwrap();
     assert_eq!(run.startup, StartupMode::Align);
-    if let Some(r) = run.rows.iter().find(|r| !r.fault().is_empty()) {
+    if let Some(r) = first_fault(&run.rows) {
         panic!("fault at {} s: {:?}", r.t_s, r.state);
     }
     let last = run.rows.last().unwrap();
@@ -242,11 +243,7 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
             .iter()
             .find(|r| r.t_s > 0.2 && r.speed_rpm < 0.0)
             .expect("the load drives the rotor backwards");
-        let fault = run
-            .rows
-            .iter()
-            .find(|r| !r.fault().is_empty())
-            .expect("a fault");
+        let fault = first_fault(&run.rows).expect("a fault");
         let delay_ms = 1e3 * (fault.t_s - back.t_s);
         println!(
             "{observer}: backwards from {:.4} s, {} at {:.4} s ({delay_ms:.1} ms, rotor at {:.0} r/min)",
@@ -342,11 +339,7 @@ fn a_lock_lost_in_a_reversal_under_load_is_named_within_100_ms() {
         .iter()
         .find(|r| r.t_s > 2.5 && r.angle_error_rad().abs() > std::f64::consts::FRAC_PI_2)
         .expect("the estimate slips in the reversal");
-    let fault = run
-        .rows
-        .iter()
-        .find(|r| !r.fault().is_empty())
-        .expect("a named fault");
+    let fault = first_fault(&run.rows).expect("a named fault");
     let delay_ms = 1e3 * (fault.t_s - slip.t_s);
     println!(
         "slip at {:.4} s, {} at {:.4} s ({delay_ms:.1} ms)",

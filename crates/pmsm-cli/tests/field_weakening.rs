@@ -4,7 +4,7 @@
 //! maximum speed, and the overspeed trip into the active short circuit. Each runs the shipped
 //! scenario through `pmsm simulate`'s own code.
 
-use pmsm_cli::commands::simulate::stats::{rms_angle, speed_err, window};
+use pmsm_cli::commands::simulate::stats::{self, rms_angle, speed_err, window};
 use pmsm_cli::commands::simulate::{Row, Run, run_scenario};
 use pmsm_core::{DriveState, Fault};
 
@@ -12,10 +12,7 @@ mod common;
 use common::example_edited as scenario;
 
 fn first_fault(run: &Run) -> Option<(f64, DriveState)> {
-    run.rows
-        .iter()
-        .find(|r| matches!(r.state, DriveState::Fault(_)))
-        .map(|r| (r.t_s, r.state))
+    stats::first_fault(&run.rows).map(|r| (r.t_s, r.state))
 }
 
 fn no_fault(run: &Run) {

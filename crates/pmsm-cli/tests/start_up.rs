@@ -4,7 +4,7 @@
 mod common;
 
 use common::scenario_text;
-use pmsm_cli::commands::simulate::stats::rms_angle;
+use pmsm_cli::commands::simulate::stats::{first_fault, rms_angle};
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_core::DriveState;
 
@@ -49,7 +49,7 @@ fn the_alignment_damps_a_heavy_rotors_swing() {
         assert!(
             rows.iter().all(|r| r.fault().is_empty()),
             "from {theta0}°: {}",
-            rows.iter().find(|r| !r.fault().is_empty()).unwrap().fault()
+            first_fault(&rows).unwrap().fault()
         );
         let tail: Vec<&Row> = rows.iter().filter(|r| r.t_s > 1.4).collect();
         let worst = tail
@@ -81,7 +81,7 @@ fn a_back_emf_estimator_reverses_under_load_through_the_open_loop() {
     let rows = run_scenario(&scenario_text("nlo-reversal", text))
         .unwrap()
         .rows;
-    if let Some(r) = rows.iter().find(|r| !r.fault().is_empty()) {
+    if let Some(r) = first_fault(&rows) {
         panic!("{} at {:.3} s", r.fault(), r.t_s);
     }
     assert!(
@@ -116,7 +116,7 @@ fn a_back_emf_start_keeps_the_open_loops_direction() {
         [initial]\ntheta_e_deg = 30.0\n\
         [speed_ref]\nt_s = [0.0, 0.1]\nrpm = [0.0, 90.0]\n";
     let rows = run_scenario(&scenario_text("ao-start", text)).unwrap().rows;
-    if let Some(r) = rows.iter().find(|r| !r.fault().is_empty()) {
+    if let Some(r) = first_fault(&rows) {
         panic!("{} at {:.4} s", r.fault(), r.t_s);
     }
     let tail: Vec<&Row> = rows.iter().filter(|r| r.t_s > 0.15).collect();

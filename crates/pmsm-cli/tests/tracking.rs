@@ -2,7 +2,7 @@
 //! own code: the heating run, and drives whose model of motor B is off.
 
 use pmsm_cli::commands::simulate::run_scenario;
-use pmsm_cli::commands::simulate::stats::{rms_angle, speed_err, window};
+use pmsm_cli::commands::simulate::stats::{first_fault, rms_angle, speed_err, window};
 
 mod common;
 use common::example_edited;
@@ -86,7 +86,7 @@ fn drives_whose_model_is_off_keep_their_lock_with_tracking() {
         let mut outcome = Vec::new();
         for tracking in [false, true] {
             let run = run_scenario(&motor_b(3.5, "switching", cell, tracking, "")).unwrap();
-            let fault = run.rows.iter().find(|r| !r.fault().is_empty());
+            let fault = first_fault(&run.rows);
             let tail = window(&run.rows, 3.0, 3.5);
             let held = fault.is_none() && rms_angle(&tail) < 0.2 && speed_err(&tail) < 0.05;
             let last = run.rows.last().unwrap();

@@ -210,8 +210,7 @@ impl DeadTimeConfig {
     /// `[0, 4]`, saturated): what the drive uses once it has measured the inverter's
     /// distortion voltage at standstill (docs/drive.md, "dead-time calibration").
     pub fn scaled(&self, scale: i32) -> Self {
-        let s = i64::from(scale.clamp(0, 4 << 28));
-        let apply = |x: i32| crate::num::sat_i32((i64::from(x) * s) >> 28);
+        let apply = |x: i32| crate::num::scale_q28(x, scale.clamp(0, 4 << 28));
         Self {
             // k < 0.1 (checked by `new`) times at most 4: below 1, inside Q1.31.
             k_bus: Coef::from_bits(apply(self.k_bus.bits())),

@@ -13,6 +13,7 @@ pub mod svg;
 pub use doc::kept_section;
 
 use anyhow::{Context, Result, anyhow};
+use pmsm_cli::commands::simulate::stats::first_fault;
 use pmsm_cli::commands::simulate::{Row, build_drive, run_scenario};
 use pmsm_cli::scenario_file::{self, Scenario};
 use pmsm_core::DriveState;
@@ -369,11 +370,7 @@ pub fn run_point(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<Point> {
     let run = run_scenario(&sc)?;
     let rs_ohm = sc.motor.model.params.rs_ohm;
     let v_b = sc.inverter.vdc_v / 3f64.sqrt();
-    let fault = run
-        .rows
-        .iter()
-        .find(|r| !r.fault().is_empty())
-        .map(|r| (r.fault(), r.t_s));
+    let fault = first_fault(&run.rows).map(|r| (r.fault(), r.t_s));
     let w: Vec<&Row> = run.rows.iter().filter(|r| r.t_s >= t0).collect();
     let last = w.last().ok_or_else(|| anyhow!("no rows in the window"))?;
     let mean = |f: &dyn Fn(&Row) -> f64| w.iter().map(|r| f(r)).sum::<f64>() / w.len() as f64;
@@ -528,7 +525,7 @@ pub fn startup_check(case: &Case, n: usize) -> Result<Vec<(f64, &'static str)>> 
         let theta = 360.0 * k as f64 / n as f64;
         let (sc, _) = scenario_at(case, 0.5 * case.rated_rpm, 0.0, theta)?;
         let run = run_scenario(&sc)?;
-        if let Some(r) = run.rows.iter().find(|r| !r.fault().is_empty()) {
+        if let Some(r) = first_fault(&run.rows) {
             failed.push((theta, r.fault()));
         }
     }

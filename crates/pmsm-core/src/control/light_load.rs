@@ -124,8 +124,7 @@ impl LightLoadConfig {
         if scale <= 1 << 28 || self.current == Pu::ZERO {
             return *self;
         }
-        let s = i64::from(scale.min(4 << 28));
-        let up = |x: i32| crate::num::sat_i32((i64::from(x) * s) >> 28);
+        let up = |x: i32| crate::num::scale_q28(x, scale.min(4 << 28));
         let current = up(self.current.to_bits()).min(self.cap.to_bits());
         let fade = up(self.fade);
         Self {

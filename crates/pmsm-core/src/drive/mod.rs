@@ -493,8 +493,7 @@ impl Drive {
         if let Some(s) = self.calibration.record(c, y, i, d) {
             // Relative to the compensation in use: a second start refines the first.
             self.deadtime_scale =
-                crate::num::sat_i32((i64::from(self.deadtime_scale) * i64::from(s)) >> 28)
-                    .clamp(0, 4 * calibrate::SCALE_ONE);
+                crate::num::scale_q28(self.deadtime_scale, s).clamp(0, 4 * calibrate::SCALE_ONE);
             self.config.deadtime = self.config.deadtime.scaled(s);
             self.config.light_load = self.config.light_load.scaled(s);
             self.deadtime_bus = DeadTimeBus::default();

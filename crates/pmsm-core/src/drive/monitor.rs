@@ -220,14 +220,12 @@ impl Monitor {
     ) -> Option<Fault> {
         let ph = [s.i_abc.a, s.i_abc.b, s.i_abc.c];
         // Three currents of a star winding sum to zero. In quarters of Pu's bits: the sum
-        // within ±3·2²⁹, the filter between its input and its state, so that plain 32-bit
-        // arithmetic cannot wrap (saturating steps cost the Cortex-M0 a branch each, on every
-        // sample).
+        // within ±3·2²⁹, no wrap and no saturating step on every sample.
         let sum = (s.i_abc.a.to_bits() >> 2)
             .wrapping_add(s.i_abc.b.to_bits() >> 2)
             .wrapping_add(s.i_abc.c.to_bits() >> 2)
             .wrapping_abs();
-        self.sum = self.sum.wrapping_add(sum.wrapping_sub(self.sum) >> c.ms1);
+        self.sum = follow_nonnegative(self.sum, sum, c.ms1);
         if self.sum > c.sum_limit {
             return Some(Fault::CurrentSensor(None));
         }
@@ -429,14 +427,11 @@ impl Monitor {
             self.tracking = 0;
         } else if !t.saturated {
             // In quarters of Pu's bits: each difference within ±2³⁰, their magnitudes' sum
-            // below 2³¹, and the filter between its input and its state: no wrap, no
-            // saturating arithmetic.
+            // below 2³¹: no wrap, no saturating step.
             let d = (t.i_ref.d.to_bits() >> 2).wrapping_sub(t.i_dq.d.to_bits() >> 2);
             let q = (t.i_ref.q.to_bits() >> 2).wrapping_sub(t.i_dq.q.to_bits() >> 2);
             let e = d.unsigned_abs().wrapping_add(q.unsigned_abs()) as i32;
-            self.tracking = self
-                .tracking
-                .wrapping_add(e.wrapping_sub(self.tracking) >> c.ms10);
+            self.tracking = follow_nonnegative(self.tracking, e, c.ms10);
         }
         if self.tracking > c.tracking_limit && self.running_for > c.settle_samples {
             return Some(Fault::LossOfLock);
@@ -448,6 +443,14 @@ impl Monitor {
     pub fn health(&self) -> Pu {
         self.health
     }
+}
+
+/// [`follow`] for a state and an input both in `[0, 2³¹)`: their difference fits an `i32` and
+/// the result lies between them, so plain 32-bit arithmetic cannot wrap (saturating steps cost
+/// the Cortex-M0 a branch each).
+#[inline(always)]
+fn follow_nonnegative(y: i32, x: i32, k: u32) -> i32 {
+    y.wrapping_add(x.wrapping_sub(y) >> k)
 }
 
 /// `i²` of a phase current in Q8.12 squares (`(i·2¹²)²`, the current clamped to ±8 pu, far

@@ -62,6 +62,12 @@ const fn shr_sat_small(x: i64, shift: u32) -> i32 {
     }
 }
 
+/// `x` times the Q4.28 scale `s` (`1 << 28` is one), saturated: the dead-time calibration's
+/// scale applied to a configuration's bits, and to the scale already in use.
+pub(crate) fn scale_q28(x: i32, s: i32) -> i32 {
+    sat_i32((i64::from(x) * i64::from(s)) >> 28)
+}
+
 /// Saturates an `i64` to the `i32` range.
 #[inline(always)]
 pub(crate) const fn sat_i32(x: i64) -> i32 {

@@ -7,6 +7,11 @@ pub fn window(rows: &[Row], t0: f64, t1: f64) -> Vec<&Row> {
     rows.iter().filter(|r| r.t_s >= t0 && r.t_s < t1).collect()
 }
 
+/// The first row in a fault state, if any.
+pub fn first_fault(rows: &[Row]) -> Option<&Row> {
+    rows.iter().find(|r| !r.fault().is_empty())
+}
+
 /// Largest |angle error|, rad.
 pub fn max_angle(rows: &[&Row]) -> f64 {
     rows.iter()
