@@ -122,7 +122,8 @@ pub use drive::{
     StartupMode, Telemetry,
 };
 pub use drive::{
-    Frozen, ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
+    DistortionDesign, DistortionFrozen, DistortionLearner, DistortionStatus, Frozen,
+    ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
     WRITE_THRESHOLD,
 };
 pub use error::ConfigError;

@@ -113,6 +113,10 @@ pub struct Control {
     /// default false).
     #[serde(default)]
     pub tracking: bool,
+    /// Learn the inverter's distortion voltage while running and rescale the dead-time
+    /// compensation to it (`pmsm_core::DistortionLearner`, docs/distortion.md; default off).
+    #[serde(default)]
+    pub deadtime_learning: bool,
 }
 
 impl Control {

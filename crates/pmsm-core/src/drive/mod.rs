@@ -23,6 +23,7 @@
 mod calibrate;
 mod codes;
 mod config;
+mod distortion;
 mod interface;
 mod monitor;
 mod startup;
@@ -32,6 +33,7 @@ pub use config::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveConfig, DriveDesign, DriveOptions,
     MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, OpenLoopDesign, Protection, StartupMode,
 };
+pub use distortion::{DistortionDesign, DistortionFrozen, DistortionLearner, DistortionStatus};
 pub use interface::{DriveInput, DriveOutput, DriveState, Fault, SpeedRefLimit, Telemetry};
 pub use tracking::{
     Frozen, ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
@@ -46,7 +48,7 @@ use crate::control::speed::SpeedController;
 use crate::deadtime::{CurrentSource, DeadTimeBus};
 use crate::frames::{AlphaBeta, Dq, clarke, inverse_park, park};
 use crate::ipd::{Ipd, IpdResult};
-use crate::num::{Pu, Unit, follow, mul_unit};
+use crate::num::{PU_FRAC, Pu, Unit, follow, mul_unit};
 use crate::observer::{AnyEstimator, Estimate, Estimator, Frame, ObserverInput};
 use crate::svpwm::{BusReciprocal, Duties, SvpwmOutput};
 use startup::OpenLoop;
@@ -174,6 +176,16 @@ impl Drive {
             m.set_model(&c.mras);
         }
         self.current.set_psi(c.psi);
+    }
+
+    /// Scales the dead-time compensation's `V_dead` to `scale` times the one the drive was
+    /// told (within [0, 4], saturated; absolute), with the light-load current raised with it
+    /// (never lowered): what a [`DistortionLearner`] measured while running. Between two steps (on an MCU
+    /// with the control interrupt masked).
+    pub fn set_deadtime_scale(&mut self, scale: Pu) {
+        let bits = scale.to_bits().clamp(0, 4 << PU_FRAC);
+        // Q8.24 to Q4.28: at most 4 << 28 < 2³¹.
+        self.apply_deadtime_scale(bits << (28 - PU_FRAC));
     }
 
     /// The estimator's health figure ([`Estimator::health`]) filtered over 10 ms, as the
@@ -492,15 +504,29 @@ impl Drive {
         let d = park(v_dt, sc).d;
         if let Some(s) = self.calibration.record(c, y, i, d) {
             // Relative to the compensation in use: a second start refines the first.
-            self.deadtime_scale =
-                crate::num::scale_q28(self.deadtime_scale, s).clamp(0, 4 * calibrate::SCALE_ONE);
-            self.config.deadtime = self.config.deadtime.scaled(s);
-            self.config.light_load = self.config.light_load.scaled(s);
-            self.deadtime_bus = DeadTimeBus::default();
+            self.apply_deadtime_scale(crate::num::scale_q28(self.deadtime_scale, s));
             self.state = self.rotor_found(theta);
             self.telemetry.estimate = self.estimator.estimate();
         }
         Setpoint::standstill(theta, i_ref)
+    }
+
+    /// Runs with a compensation whose `V_dead` is `scale` (Q4.28, saturated to [0, 4]) times
+    /// the one the drive was told, and the light-load current raised with it.
+    #[cold]
+    #[inline(never)]
+    fn apply_deadtime_scale(&mut self, scale: i32) {
+        let scale = scale.clamp(0, 4 * calibrate::SCALE_ONE);
+        // Relative to the scale in use (the configuration holds the scaled values): Q4.28 of
+        // new/old, at most 4 (from a scale of zero the compensation stays off).
+        let rel = (i64::from(scale) << 28)
+            .checked_div(i64::from(self.deadtime_scale))
+            .map_or(i64::from(scale), |r| r.min(4 << 28)) as i32;
+        self.deadtime_scale = scale;
+        self.config.deadtime = self.config.deadtime.scaled(rel);
+        // Raised with the scale, never lowered (a larger light-load current only costs copper).
+        self.config.light_load = self.config.light_load.scaled(rel);
+        self.deadtime_bus = DeadTimeBus::default();
     }
 
     /// The open-loop start: an imposed frame accelerating to the handover speed, where the

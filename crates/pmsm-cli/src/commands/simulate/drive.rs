@@ -5,6 +5,7 @@ use crate::scenario_file::{CompensationMode, ObserverKind, Scenario, Startup};
 use anyhow::{Result, anyhow, bail};
 use pmsm_core::DeadTimeMode;
 use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{DistortionDesign, DistortionLearner};
 use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode, Tracker, TrackerDesign};
 use pmsm_core::{EstimatorKind, MrasCurrentGains};
 use std::f64::consts::TAU;
@@ -31,6 +32,9 @@ pub struct DriveSetup {
     /// The tracker of R and ψ (`[control] tracking`), run every
     /// `TrackerDesign::interval_samples` samples.
     pub tracker: Option<Tracker>,
+    /// The learner of the inverter's distortion voltage (`[control] deadtime_learning`), run
+    /// every `DistortionDesign::interval_samples` samples.
+    pub learner: Option<DistortionLearner>,
 }
 
 /// Builds the drive of `sc`: bases, default design for the motor, the scenario's overrides,
@@ -73,9 +77,16 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
     } else {
         None
     };
+    let learner = if sc.control.deadtime_learning {
+        let design = DistortionDesign::for_drive(&config);
+        Some(DistortionLearner::new(&model, &config, design).map_err(|e| anyhow!("{shown}: {e}"))?)
+    } else {
+        None
+    };
     Ok(DriveSetup {
         drive: Drive::new(config),
         tracker,
+        learner,
         base,
         model,
         inverter,

@@ -114,7 +114,7 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
     }
     if (result.deadtime_scale - 1.0).abs() > 1e-9 {
         println!(
-            "  dead-time calibration: V_dead {:.3} times the one the drive was told",
+            "  dead-time compensation: V_dead {:.3} times the one the drive was told (measured at standstill and while running)",
             result.deadtime_scale
         );
     }

@@ -89,6 +89,8 @@ pub struct Run {
     /// The dead-time compensation's `V_dead` against the one the drive was told, at the
     /// end (the calibration's; 1 without one).
     pub deadtime_scale: f64,
+    /// The distortion learner's status at the end (`[control] deadtime_learning`).
+    pub learner: Option<pmsm_core::DistortionStatus>,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -135,6 +137,11 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         {
             tr.run(&mut setup.drive);
         }
+        if let Some(l) = &mut setup.learner
+            && k % l.design().interval_samples as usize == 0
+        {
+            l.run(&mut setup.drive);
+        }
         recorder.record(k, &setup.drive, &input);
         if let (None, Some(pmsm_core::SpeedRefLimit::AboveMaxSpeed { used, .. })) =
             (speed_ref_limited, setup.drive.speed_ref_limit())
@@ -172,6 +179,10 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         speed_ref_limited,
         startup,
         deadtime_scale: setup.drive.deadtime_scale().to_num::<f64>(),
+        learner: setup
+            .learner
+            .as_ref()
+            .map(pmsm_core::DistortionLearner::status),
     })
 }
 
