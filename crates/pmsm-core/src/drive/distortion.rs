@@ -49,9 +49,10 @@
 //! `f32`, about 70 operations per [`DistortionLearner::update`] (one sin/cos), a few more at
 //! the end of a batch.
 
+use super::tracking::pu;
 use super::{Drive, DriveConfig, TrackerInput};
 use crate::error::ConfigError;
-use crate::num::{PU_FRAC, Pu, pu_from_f64};
+use crate::num::{Pu, pu_from_f64};
 use crate::params::{MotorParams, ParamError, ParamReason, in_range};
 
 /// How the learner is designed, SI units; [`DistortionDesign::for_drive`] gives the defaults.
@@ -257,11 +258,6 @@ pub struct DistortionLearner {
     scale: f32,
     written: f32,
     status: DistortionStatus,
-}
-
-/// A [`Pu`] as `f32`.
-fn pu(x: Pu) -> f32 {
-    x.to_bits() as f32 * (1.0 / (1u32 << PU_FRAC) as f32)
 }
 
 /// The Clarke transform of the phase currents' signs (amplitude-invariant, length 4/3 between

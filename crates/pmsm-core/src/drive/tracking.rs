@@ -312,8 +312,8 @@ fn toward(y: f32, x: f32, g: f32) -> f32 {
     y + g * (x - y)
 }
 
-/// A [`Pu`] as `f32`.
-fn pu(x: Pu) -> f32 {
+/// A [`Pu`] as `f32` (also the distortion learner's).
+pub(super) fn pu(x: Pu) -> f32 {
     x.to_bits() as f32 * (1.0 / (1u32 << PU_FRAC) as f32)
 }
 

@@ -20,6 +20,18 @@ struct Sample {
     v: [f64; 2],
 }
 
+/// Motor B, its bases at 14 kHz, and `R`, `L_d`, `L_q` per unit.
+fn model() -> (MotorParams, PerUnit, [f64; 3]) {
+    let m = motor_b();
+    let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
+    let z = [
+        m.rs_ohm / base.impedance_ohm,
+        m.ld_h / base.inductance_h,
+        m.lq_h / base.inductance_h,
+    ];
+    (m, base, z)
+}
+
 /// The sign pattern in f64 (docs/distortion.md), `band` per unit.
 fn pattern(ia: f64, ib: f64, band: f64) -> [f64; 2] {
     let h = 0.5 * 3f64.sqrt();
@@ -35,13 +47,7 @@ fn pattern(ia: f64, ib: f64, band: f64) -> [f64; 2] {
 /// complex amplitude on d and q at 6θ), whose loops put out the voltage of the model plus
 /// `e P` (`e` pu): `n` samples `every` control samples apart.
 fn steady(w: f64, i0: [f64; 2], ripple: [(f64, f64); 2], e: f64, n: usize) -> Vec<Sample> {
-    let m = motor_b();
-    let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
-    let (r, ld, lq) = (
-        m.rs_ohm / base.impedance_ohm,
-        m.ld_h / base.inductance_h,
-        m.lq_h / base.inductance_h,
-    );
+    let (m, base, [r, ld, lq]) = model();
     let psi = m.flux_wb / base.flux_wb;
     let band = 0.19 / base.current_a;
     let turn = w * base.omega_e_rad_s * base.sample_s * 4.0;
@@ -91,13 +97,7 @@ fn input(s: &Sample) -> TrackerInput {
 /// The batch's `ê` in f64, written from docs/distortion.md: demodulation at 6θ with the means
 /// removed, then least squares against the pattern after the impedance.
 fn reference_error(samples: &[Sample], w: f64, band: f64) -> f64 {
-    let m = motor_b();
-    let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
-    let (r, ld, lq) = (
-        m.rs_ohm / base.impedance_ohm,
-        m.ld_h / base.inductance_h,
-        m.lq_h / base.inductance_h,
-    );
+    let (_, _, [r, ld, lq]) = model();
     let sig: Vec<([f64; 6], f64)> = samples
         .iter()
         .map(|s| {
