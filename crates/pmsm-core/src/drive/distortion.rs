@@ -145,7 +145,8 @@ pub struct DistortionStatus {
     pub discarded: u32,
     /// The last batch's `ê = V_true − V_c`, V at the nominal bus's scale.
     pub error_v: f32,
-    /// The scale the learner holds (of the told `V_dead`).
+    /// The scale the learner holds (of the told `V_dead`): its own, or the drive's when that
+    /// changed since the last write.
     pub scale: f32,
 }
 
@@ -254,8 +255,7 @@ pub struct DistortionLearner {
     settle_updates: u32,
     run_updates: u32,
     batch: Batch,
-    /// The scale held, and the one last written (or read from the drive).
-    scale: f32,
+    /// The scale last written (or read from the drive); the one held is the status's.
     written: f32,
     status: DistortionStatus,
 }
@@ -337,7 +337,6 @@ impl DistortionLearner {
             settle_updates: libm::ceil(d.settle_s / dt) as u32,
             run_updates: 0,
             batch: Batch::default(),
-            scale: 1.0,
             written: 1.0,
             status: DistortionStatus {
                 scale: 1.0,
@@ -362,17 +361,18 @@ impl DistortionLearner {
     pub fn update(&mut self, input: &TrackerInput, scale: Pu) -> Option<Pu> {
         let drive_scale = pu(scale);
         if libm::fabsf(drive_scale - self.written) > 1e-6 {
-            (self.scale, self.written) = (drive_scale, drive_scale);
+            (self.status.scale, self.written) = (drive_scale, drive_scale);
         }
         self.listen(input);
         if self.batch.n < self.batch_updates {
             return None;
         }
         self.finish_batch();
-        let step = libm::fabsf(self.scale - self.written);
+        let scale = self.status.scale;
+        let step = libm::fabsf(scale - self.written);
         if step > self.design.write_threshold as f32 {
-            self.written = self.scale;
-            return Some(pu_from_f64(f64::from(self.scale)));
+            self.written = scale;
+            return Some(pu_from_f64(f64::from(scale)));
         }
         None
     }
@@ -460,10 +460,9 @@ impl DistortionLearner {
         let step = (self.design.gain as f32 * e / self.v_dead)
             .max(-max)
             .min(max);
-        self.scale = (self.scale + step).max(lo as f32).min(hi as f32);
+        self.status.scale = (self.status.scale + step).max(lo as f32).min(hi as f32);
         self.status.batches = self.status.batches.saturating_add(1);
         self.status.error_v = e / self.v_dead * self.design.v_dead_v as f32;
-        self.status.scale = self.scale;
     }
 }
 

@@ -137,11 +137,17 @@ fn reference_error(samples: &[Sample], w: f64, band: f64) -> f64 {
     num / den
 }
 
-fn learner(d: impl FnOnce(&mut DistortionDesign)) -> (DistortionLearner, PerUnit) {
+/// Motor B and its drive's default configuration at 14 kHz.
+fn drive_config() -> (MotorParams, crate::drive::DriveConfig) {
     let m = motor_b();
     let config =
         crate::drive::DriveConfig::from_params(&m, &inverter_b(), 14e3, Default::default())
             .unwrap();
+    (m, config)
+}
+
+fn learner(d: impl FnOnce(&mut DistortionDesign)) -> (DistortionLearner, PerUnit) {
+    let (m, config) = drive_config();
     let mut design = DistortionDesign::for_drive(&config);
     design.settle_s = 0.0;
     d(&mut design);
@@ -317,10 +323,7 @@ fn the_scale_is_bounded_and_follows_the_drive() {
 /// A drive without compensation has no `V_dead` to scale: the constructor names the field.
 #[test]
 fn no_compensation_is_an_error_naming_the_field() {
-    let m = motor_b();
-    let config =
-        crate::drive::DriveConfig::from_params(&m, &inverter_b(), 14e3, Default::default())
-            .unwrap();
+    let (m, config) = drive_config();
     let mut design = DistortionDesign::for_drive(&config);
     design.v_dead_v = 0.0;
     let e = DistortionLearner::new(&m, &config, design).unwrap_err();
