@@ -181,6 +181,21 @@ fn gains_that_break_the_discrete_observer_are_rejected() {
     // c3 so small that the MRAS pull exceeds 2 per sample at base speed.
     let err = MrasEmfConfig::new(&m, &b, 1000.0, [0.0347, 5208.0, 1e-3]).unwrap_err();
     assert!(matches!(err, ConfigError::Gain { key: "c3", .. }));
+    // A sample rate so slow beside the base speed that the paper's c3 = 0.1 is unstable
+    // (ω_b T_s = 0.3, the least c3 is 0.15): the default raises c3 to ω_b T_s.
+    let wb_ts_20k = b.omega_e_rad_s / 20e3;
+    let slow = base(&m, 300.0, 20e3 * wb_ts_20k / 0.3);
+    let wb_ts = slow.omega_e_rad_s * slow.sample_s;
+    assert!((wb_ts - 0.3).abs() < 1e-9, "{wb_ts}");
+    let err = MrasEmfConfig::paper(&m, &slow, 1000.0).unwrap_err();
+    assert!(matches!(err, ConfigError::Gain { key: "c3", .. }));
+    let c = MrasEmfConfig::default_for(&m, &slow, 1000.0).unwrap();
+    assert!((c.constants[2] - wb_ts).abs() < 1e-12, "{:?}", c.constants);
+    // Where the paper's constants are stable they are the default.
+    let c = MrasEmfConfig::default_for(&m, &b, 1000.0).unwrap();
+    for (got, paper) in c.constants.iter().zip(pmsm_core::MRAS_EMF_PAPER_CONSTANTS) {
+        assert!((got - paper).abs() <= 1e-12 * paper, "{:?}", c.constants);
+    }
     let mut bad = m;
     bad.flux_wb = f64::NAN;
     assert!(

@@ -424,7 +424,7 @@ impl DriveConfig {
             EstimatorKind::Ao => EstimatorConfig::Ao(AoConfig::new(motor, &base, g)?),
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             EstimatorKind::MrasEmf => {
-                EstimatorConfig::MrasEmf(MrasEmfConfig::paper(motor, &base, g)?)
+                EstimatorConfig::MrasEmf(MrasEmfConfig::default_for(motor, &base, g)?)
             }
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
             EstimatorKind::MrasCurrent => EstimatorConfig::MrasCurrent(MrasCurrentConfig::new(

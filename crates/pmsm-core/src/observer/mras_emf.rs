@@ -10,7 +10,8 @@
 //! ```
 //!
 //! The constants are the paper's, in SI electrical units (`c1 = 0.0347`, `c2 = 5208`,
-//! `c3 = 0.1`); in per unit `ω̂_Ad = ψ_b² (c1 ε + (c2/ω_b) ω_b∫ε dt) / ω̂_AO` with
+//! `c3 = 0.1`; [`MrasEmfConfig::default_for`] raises `c3` where the sample rate is too slow
+//! for it, docs/solsona2000.md §5); in per unit `ω̂_Ad = ψ_b² (c1 ε + (c2/ω_b) ω_b∫ε dt) / ω̂_AO` with
 //! `ψ_b = V_b/ω_b`, which keeps the paper's behaviour for any base.
 //!
 //! Discretisation: the rotation of `ẽ` is exact (as in the NLO), the pull uses the pole
@@ -62,6 +63,20 @@ impl MrasEmfConfig {
         ao_gain_rad_s: f64,
     ) -> Result<Self, ConfigError> {
         Self::new(motor, base, ao_gain_rad_s, PAPER_CONSTANTS)
+    }
+
+    /// MRAS with the paper's constants, but `c3` at least `ω_b T_s` (a pull of one sample's
+    /// worth per sample at base speed): the paper's 0.1 is below the stable least `ω_b T_s/2`
+    /// for a fast motor at a slow PWM (a 320 V, 5459 r/min, 3-pole-pair motor at 13 kHz
+    /// needs 0.103), and doubling the bound keeps the pull's series accurate.
+    pub fn default_for(
+        motor: &MotorParams,
+        base: &PerUnit,
+        ao_gain_rad_s: f64,
+    ) -> Result<Self, ConfigError> {
+        let [c1, c2, c3] = PAPER_CONSTANTS;
+        let c3 = c3.max(base.omega_e_rad_s * base.sample_s);
+        Self::new(motor, base, ao_gain_rad_s, [c1, c2, c3])
     }
 
     /// MRAS with constants `[c1, c2, c3]` (SI, electrical) on an AO of gain `ao_gain_rad_s`.

@@ -31,7 +31,7 @@ pub(super) fn build_estimator(
         Observer::Nlo => Box::new(Nlo::new(NloConfig::new(m, base, gain).map_err(cfg_err)?)),
         Observer::Ao => Box::new(Ao::new(AoConfig::new(m, base, gain).map_err(cfg_err)?)),
         Observer::MrasEmf => Box::new(MrasEmf::new(
-            MrasEmfConfig::paper(m, base, gain).map_err(cfg_err)?,
+            MrasEmfConfig::default_for(m, base, gain).map_err(cfg_err)?,
         )),
     })
 }
