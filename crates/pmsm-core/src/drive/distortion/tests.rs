@@ -172,6 +172,11 @@ fn feed(l: &mut DistortionLearner, samples: &[Sample], w: f64) -> Vec<f64> {
     written
 }
 
+/// Motor B's 800 r/min (3 pole pairs) in per unit of `base`'s electrical speed.
+fn speed_800_rpm(base: &PerUnit) -> f64 {
+    800.0 / 60.0 * core::f64::consts::TAU * 3.0 / base.omega_e_rad_s
+}
+
 /// A residual of 3 V (a fifth of motor B's told `V_dead`) at 800 r/min under load, the
 /// ripple shared between the voltage and a current ripple of 0.02 pu: the learner's `ê`
 /// within 2 % of the f64 reference's on the same samples and within 5 % of the truth; its
@@ -179,7 +184,7 @@ fn feed(l: &mut DistortionLearner, samples: &[Sample], w: f64) -> Vec<f64> {
 #[test]
 fn the_residual_is_measured_at_speed_and_matches_the_reference() {
     let (mut l, base) = learner(|_| {});
-    let w = 800.0 / 60.0 * core::f64::consts::TAU * 3.0 / base.omega_e_rad_s;
+    let w = speed_800_rpm(&base);
     let e = 3.0 / base.voltage_v;
     let n = l.batch_updates as usize;
     let samples = steady(w, [0.0, 0.8], [(0.01, -0.005), (0.02, 0.01)], e, n);
@@ -211,7 +216,7 @@ fn the_residual_is_measured_at_speed_and_matches_the_reference() {
 #[test]
 fn a_current_ripple_the_impedance_explains_is_no_error() {
     let (mut l, base) = learner(|_| {});
-    let w = 800.0 / 60.0 * core::f64::consts::TAU * 3.0 / base.omega_e_rad_s;
+    let w = speed_800_rpm(&base);
     let n = l.batch_updates as usize;
     let samples = steady(w, [0.0, 0.8], [(0.01, -0.005), (0.02, 0.01)], 0.0, n);
     let written = feed(&mut l, &samples, w);
@@ -227,7 +232,7 @@ fn a_current_ripple_the_impedance_explains_is_no_error() {
 #[test]
 fn gates_keep_what_is_not_a_steady_run_out() {
     let (mut l, base) = learner(|_| {});
-    let w = 800.0 / 60.0 * core::f64::consts::TAU * 3.0 / base.omega_e_rad_s;
+    let w = speed_800_rpm(&base);
     let e = 3.0 / base.voltage_v;
     let n = l.batch_updates as usize;
     // 0.3 pu is below ten bands of 0.19 A (1.9 A, 0.53 pu on motor B).
@@ -281,7 +286,7 @@ fn gates_keep_what_is_not_a_steady_run_out() {
 #[test]
 fn the_scale_is_bounded_and_follows_the_drive() {
     let (mut l, base) = learner(|_| {});
-    let w = 800.0 / 60.0 * core::f64::consts::TAU * 3.0 / base.omega_e_rad_s;
+    let w = speed_800_rpm(&base);
     let n = l.batch_updates as usize;
     // A residual of 100 V: the scale would be 7.6; a quarter per batch by default.
     let samples = steady(
