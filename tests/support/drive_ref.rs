@@ -71,6 +71,11 @@ pub struct MrasRef {
     pub kl: f64,
     /// Load-current estimate, A.
     pub i_load: f64,
+    /// The low-speed schedule (`pmsm_core::MrasCurrent::schedule`): `(above_rad_s, factor)`
+    /// per level, fastest first; all `(0, 1)`: the gains stay as given.
+    pub levels: [(f64, f64); 5],
+    /// The factor of the level in use.
+    pub boost: f64,
 }
 
 impl MrasRef {
@@ -99,6 +104,33 @@ impl MrasRef {
             friction: m.b_nm_s / m.j_kg_m2,
             kl,
             i_load: 0.0,
+            levels: [(0.0, 1.0); 5],
+            boost: 1.0,
+        }
+    }
+
+    /// The low-speed schedule of the crate's current-model MRAS, from its definition: the
+    /// factors `b = (1, 3/2, 2, 3, 4)`, level `j` above `ω_c/√(√(b_j b_{j+1}) − 1)`,
+    /// `ω_c = R/√(L_d L_q)` (the corner of ξ's sensitivity `ω²/(ω² + ω_c²)` at zero current).
+    pub fn with_schedule(mut self) -> Self {
+        let corner = self.r / (self.ld * self.lq).sqrt();
+        let b = |j: usize| [1.0f64, 1.5, 2.0, 3.0, 4.0][j];
+        self.levels = core::array::from_fn(|j| {
+            let mid = if j < 4 { (b(j) * b(j + 1)).sqrt() } else { 1.0 };
+            let above = if mid > 1.0 {
+                corner / (mid - 1.0).sqrt()
+            } else {
+                0.0
+            };
+            (above, b(j))
+        });
+        self
+    }
+
+    /// Takes the level for the speed `omega` (rad/s electrical).
+    pub fn schedule(&mut self, omega: f64) {
+        if let Some(&(_, b)) = self.levels.iter().find(|(above, _)| omega.abs() >= *above) {
+            self.boost = b;
         }
     }
 
@@ -111,6 +143,7 @@ impl MrasRef {
         self.xi = 0.0;
         self.i_load = 0.0;
         self.seed = true;
+        self.schedule(omega);
     }
 
     fn half_step(&mut self, v_dq: [f64; 2]) {
@@ -150,13 +183,14 @@ impl MrasRef {
             - (self.ld / self.lq) * i[0] * eq
             - (self.psi / self.lq) * eq;
         self.xi = xi;
+        let g = self.boost;
         if self.kl > 0.0 {
-            self.i_load -= self.ts * self.kl * xi;
+            self.i_load -= self.ts * g * self.kl * xi;
             self.integ +=
                 self.ts * (self.accel * (i[1] - self.i_load) - self.friction * self.omega);
         }
-        self.integ += self.ki * self.ts * xi;
-        self.omega = self.integ + self.kp * xi;
+        self.integ += g * self.ki * self.ts * xi;
+        self.omega = self.integ + g * self.kp * xi;
         (self.theta, self.omega)
     }
 }

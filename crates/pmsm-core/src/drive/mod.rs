@@ -393,6 +393,11 @@ impl Drive {
     #[inline(always)]
     fn estimate(&mut self, i: AlphaBeta) -> Estimate {
         // The estimator always sees the period that just ended.
+        // The current-model MRAS's low-speed gain schedule, every eighth sample on the slot
+        // with the least other work (the monitor's stuck-channel check).
+        if self.slot == SCHEDULE_SLOT {
+            self.estimator.schedule();
+        }
         let estimate = self.estimator.update(&ObserverInput { i, v: self.v_est });
         self.telemetry.estimate = estimate;
         self.speed_filtered = follow(
@@ -889,6 +894,9 @@ impl Drive {
         }
     }
 }
+
+/// The slot of the current-model MRAS's gain schedule.
+const SCHEDULE_SLOT: u8 = 1;
 
 /// The last of the eight outer-loop slots (they count modulo 8): the d-axis reference's
 /// updates on odd ones, the speed loop on every sample or (decimated) on even ones.

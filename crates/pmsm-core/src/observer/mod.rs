@@ -262,6 +262,20 @@ impl AnyEstimator {
     }
 }
 
+impl AnyEstimator {
+    /// The current-model MRAS takes the gains of its low-speed schedule for its estimated
+    /// speed ([`MrasCurrent::schedule`]); the others have none.
+    #[inline(always)]
+    pub(crate) fn schedule(&mut self) {
+        match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+            AnyEstimator::MrasCurrent(e) => e.schedule(e.estimate().omega),
+            #[allow(unreachable_patterns)] // the only variant with `select-estimators`
+            _ => {}
+        }
+    }
+}
+
 impl Estimator for AnyEstimator {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
         match self {

@@ -33,21 +33,57 @@ pub struct MrasCurrentConfig {
     pub(super) xi_scale: Coef<24>,
     /// Angle step per unit of speed: `ω_b T_s 2³³/(2π)`; times `2^TURN_SHIFT` gives 2⁻⁶⁴ turns.
     pub(super) turn_per_speed: i32,
-    /// Speed integrator (Q9.55 increments): `K_i T_s`, `T_s p K_T I_b/(J ω_b)`, `T_s B/J`.
-    pub(super) ki_ts: Coef<31>,
+    /// Speed integrator (Q9.55 increments, beside the schedule's `K_i T_s`):
+    /// `T_s p K_T I_b/(J ω_b)`, `T_s B/J`.
     pub(super) accel: Coef<31>,
     pub(super) friction: Coef<31>,
-    /// Proportional gain on ξ̃, and the back-calculation gain `min(1, K_i T_s/K_p)` (zero:
-    /// `K_p = 0`, conditional integration).
-    pub(super) kp: Coef<24>,
+    /// The back-calculation gain `min(1, K_i T_s/K_p)` (zero: `K_p = 0`, conditional
+    /// integration): the same at every level of the schedule.
     pub(super) kt: Coef<30>,
-    /// Load-current estimate change per sample per unit of ξ̃, `T_s K_L I_b/ρ` (per unit).
-    pub(super) load_gain: Coef<27>,
+    /// The gains in use: a level of the low-speed schedule, rewritten by
+    /// [`MrasCurrent::schedule`] between updates (as [`MrasCurrent::set_model`] rewrites the
+    /// model), kept here where the update reads its other coefficients.
+    pub(super) gains: Gains,
+    /// The design gains (level 0).
+    pub(super) design: Gains,
+    /// The low-speed schedule (module docs, "Low-speed schedule"): level `j` holds below
+    /// `above[j − 1]` (per unit of speed, descending) down to `above[j]`; at most level `top`
+    /// (the highest whose gains fit their formats; 0 with the schedule off).
+    pub(super) above: [Pu; BOOST_LEVELS - 1],
+    pub(super) top: usize,
     /// Speed clamp, per unit, and in Q9.55.
     pub(super) omega_max: Pu,
     pub(super) omega_max_wide: i64,
-    /// Gains it was built with.
-    pub gains: MrasCurrentGains,
+}
+
+/// The adaptation gains the update uses, in their formats: the design's, or a level of the
+/// low-speed schedule.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct Gains {
+    /// `K_p` on ξ̃ (Q8.24 gain), `K_i T_s` on ξ̃, and the load estimate's `T_s K_L I_b/ρ`.
+    pub(super) kp: Coef<24>,
+    pub(super) ki_ts: Coef<31>,
+    pub(super) load_gain: Coef<27>,
+}
+
+impl Gains {
+    /// The gains times the factor `b_j` of level `j` (1, 3/2, 2, 3, 4): shifts and adds, which
+    /// cannot wrap up to the level `top` the configuration allows.
+    #[inline(always)]
+    fn boosted(self, j: usize) -> Self {
+        let b = |x: i32| match j {
+            0 => x,
+            1 => x + (x >> 1),
+            2 => x << 1,
+            3 => (x << 1) + x,
+            _ => x << 2,
+        };
+        Self {
+            kp: Coef::from_bits(b(self.kp.bits())),
+            ki_ts: Coef::from_bits(b(self.ki_ts.bits())),
+            load_gain: Coef::from_bits(b(self.load_gain.bits())),
+        }
+    }
 }
 
 /// `value` as a `Coef<F>` if it is in `[min, max]` and representable, else the typed error
@@ -147,6 +183,22 @@ impl MrasCurrentConfig {
         } else {
             Coef::ZERO
         };
+        // The corner `R/√(L_d L_q)` of ξ's sensitivity at zero current, per unit of ω_b.
+        let corner = motor.rs_ohm / (libm::sqrt(motor.ld_h * motor.lq_h) * base.omega_e_rad_s);
+        let mut above = [Pu::ZERO; BOOST_LEVELS - 1];
+        for (a, c) in above.iter_mut().zip(BOOST_ABOVE) {
+            *a = pu_from_f64((c * corner).min(MAX_SPEED_PU));
+        }
+        // The highest level whose gains (`b_j` times, at most 4) all fit their formats.
+        let largest = kp.bits().max(ki_ts.bits()).max(load_gain.bits()) as i64;
+        let top = if gains.low_speed_schedule {
+            [(3, 2), (2, 1), (3, 1), (4, 1)]
+                .iter()
+                .take_while(|(n, d)| largest * n <= i32::MAX as i64 * d)
+                .count()
+        } else {
+            0
+        };
         let accel = if mech {
             ts * motor.p() * motor.kt_nm_per_a * base.current_a
                 / (motor.j_kg_m2 * base.omega_e_rad_s)
@@ -188,16 +240,44 @@ impl MrasCurrentConfig {
             psi_ld: model.psi_ld,
             xi_scale: model.xi_scale,
             turn_per_speed,
-            ki_ts,
             accel: coef("j_kg_m2", accel, 0.0, MECH_MAX)?,
             friction: coef("b_nm_s", friction, 0.0, MECH_MAX)?,
-            kp,
             kt,
-            load_gain,
+            gains: Gains {
+                kp,
+                ki_ts,
+                load_gain,
+            },
+            design: Gains {
+                kp,
+                ki_ts,
+                load_gain,
+            },
+            above,
+            top,
             omega_max: pu_from_f64(omega_max),
             omega_max_wide: (pu_from_f64(omega_max).to_bits() as i64) << INTEG_EXTRA,
-            gains,
         })
+    }
+}
+
+impl MrasCurrentConfig {
+    /// The schedule's level for the estimated speed `omega`: the number of thresholds above
+    /// `|ω̂|`, at most `top`. Out of line: every eighth sample and at a reset.
+    #[inline(never)]
+    pub(super) fn level(&self, omega: Pu) -> usize {
+        let speed = omega.saturating_abs();
+        self.above
+            .iter()
+            .take_while(|a| speed < **a)
+            .count()
+            .min(self.top)
+    }
+
+    /// The gains of the schedule's level for the estimated speed `omega`.
+    #[inline(always)]
+    pub(super) fn gains_at(&self, omega: Pu) -> Gains {
+        self.design.boosted(self.level(omega))
     }
 }
 

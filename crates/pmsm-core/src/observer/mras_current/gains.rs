@@ -16,6 +16,10 @@ pub struct MrasCurrentGains {
     /// Gain `K_L` of the load-current estimate, A/(A²·s); zero turns the mechanical model off
     /// (the plain MRAS of Khlaief, Boussak, Gossa (2012)).
     pub kl: f64,
+    /// Raise the three gains at low speed, up to four times, to hold the loop's gain where ξ's
+    /// sensitivity falls (module docs, "Low-speed schedule"); `false` (the default) keeps them
+    /// fixed.
+    pub low_speed_schedule: bool,
 }
 
 impl MrasCurrentGains {
@@ -37,6 +41,7 @@ impl MrasCurrentGains {
             kp: (2.0 * wn + wl) / k,
             ki: (wn * wn + 2.0 * wn * wl) / k,
             kl: wn * wn * wl / (a * k),
+            low_speed_schedule: false,
         }
     }
 

@@ -74,12 +74,25 @@
 //! K_p = 2 ω_n / k_∞,   K_i = ω_n² / k_∞,   k_∞ = (ψ/L_q)²
 //! ```
 //!
-//! Default `ω_n = 0.02/T_s` (280 rad/s at 14 kHz). At low speed `k_δ` falls roughly as
-//! `ω² L_q²/(R² + ω² L_q²)` and the loop slows (the slowest mode tends to `ω² L_q/R` as the
-//! gains grow), which is the MRAS's known weakness near standstill; the position error at
-//! steady state is still zero with exact parameters. Accepted range:
+//! Default `ω_n = 0.02/T_s` (280 rad/s at 14 kHz). At low speed `k_δ` falls (at zero current
+//! as `ω²/(ω² + ω_c²)`, `ω_c = R/√(L_d L_q)`) and the loop slows, which is the MRAS's known
+//! weakness near standstill ("Low-speed schedule" makes up for it down to `ω_c/√3`); the
+//! position error at steady state is still zero with exact parameters. Accepted range:
 //! `K_p ∈ [0, 1/(k_∞ T_s)]`, `K_i ∈ [0, 0.25/(k_∞ T_s²)]`, and within the formats of their
 //! per-unit values ("Formats").
+//!
+//! # Low-speed schedule
+//!
+//! At zero current the sensitivity is `k = k_∞ ω²/(ω² + ω_c²)`, `ω_c = R/√(L_d L_q)`: the
+//! loop's gain falls by `1 + (ω_c/ω)²` below the corner. The three gains (`K_p`, `K_i`, `K_L`)
+//! are raised by about that loss, in five levels `b = (1, 3/2, 2, 3, 4)` (shifts and adds):
+//! level `j` from `|ω̂| ≥ c_j ω_c` up, `c_j = 1/√(√(b_j b_{j+1}) − 1)` (the geometric midpoint
+//! to the next factor), the last down to zero. All three scale together, so the roots of the
+//! linearised loop stay near where they were designed down to `ω̂ ≈ ω_c/√3`, and `k_t` is
+//! unchanged. Levels whose gains would leave their formats are not used. The update reads its
+//! gains from the level in use; [`MrasCurrent::schedule`] picks the level (the drive, every
+//! eighth sample); [`MrasCurrentGains::low_speed_schedule`] turns it on (off by default:
+//! docs/khlaief2012.md §2 gives the measurements and the start it does not hold yet).
 //!
 //! The PI is the estimator's own: `ω̂ = clamp(K_p ξ + I, ±ω_max)`, the feed-forward of the
 //! mechanical model and `K_i T_s ξ` added to `I` every sample, `I` clamped to `±ω_max`. While
@@ -143,6 +156,17 @@ use crate::num::PU_FRAC;
 
 /// Default `ω_n T_s` of the adaptation loop.
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.02;
+
+/// Levels of the low-speed schedule (module docs, "Low-speed schedule").
+pub(super) const BOOST_LEVELS: usize = 5;
+/// Level `j < 4` holds from `|ω̂| ≥ c_j ω_c` up, `c_j = 1/√(√(b_j b_{j+1}) − 1)` with the
+/// factors `b = (1, 3/2, 2, 3, 4)`; the last down to zero.
+pub(super) const BOOST_ABOVE: [f64; BOOST_LEVELS - 1] = [
+    2.109_381_364_946_41,
+    1.168_770_894_480_367_9,
+    0.830_600_956_269_998_3,
+    0.637_045_853_575_688_5,
+];
 
 /// Largest estimated speed, per unit of `ω_b` (also at most 1 rad per sample).
 pub const MAX_SPEED_PU: f64 = 4.0;

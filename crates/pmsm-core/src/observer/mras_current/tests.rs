@@ -134,3 +134,55 @@ fn model_at_rest_stays_at_rest_and_reset_seeds() {
         assert!(out.omega.abs() <= cfg.omega_max);
     }
 }
+
+/// The schedule's thresholds are the definition's (level `j` above
+/// `ω_c/√(√(b_j b_{j+1}) − 1)`, `b = (1, 3/2, 2, 3, 4)`); on motor B each level gives the
+/// design gains times `b_j` from `c_j ω_c` up and the next level's just below, and the gains
+/// stay fixed with the schedule off.
+#[test]
+fn low_speed_schedule_follows_its_definition() {
+    let b = [1.0, 1.5, 2.0, 3.0, 4.0];
+    for (j, (c, pair)) in BOOST_ABOVE.iter().zip(b.windows(2)).enumerate() {
+        let [lo, hi] = [pair[0], pair[1]];
+        let want = 1.0 / libm::sqrt(libm::sqrt(lo * hi) - 1.0);
+        assert!((c - want).abs() < 1e-12, "c_{j}: {c} against {want}");
+    }
+    let (m, base) = motor_b();
+    let g = MrasCurrentGains {
+        low_speed_schedule: true,
+        ..MrasCurrentGains::default_for(&m, &base)
+    };
+    let cfg = MrasCurrentConfig::new(&m, &base, g).unwrap();
+    assert_eq!(cfg.top, BOOST_LEVELS - 1);
+    let corner = m.rs_ohm / libm::sqrt(m.ld_h * m.lq_h) / base.omega_e_rad_s;
+    let fixed = cfg.design;
+    for (j, factor) in b.iter().enumerate() {
+        // Just above the level's threshold (the last level: at standstill).
+        let speed = BOOST_ABOVE.get(j).map_or(0.0, |c| c * corner * 1.001);
+        let level = cfg.gains_at(crate::num::pu_from_f64(speed));
+        for (name, got, design) in [
+            ("K_p", level.kp.to_f64(), fixed.kp.to_f64()),
+            ("K_i", level.ki_ts.to_f64(), fixed.ki_ts.to_f64()),
+            ("K_L", level.load_gain.to_f64(), fixed.load_gain.to_f64()),
+        ] {
+            let ratio = got / design;
+            assert!((ratio - factor).abs() < 1e-6, "level {j}: {name} × {ratio}");
+        }
+        // And just below it, the next level's (more) gain.
+        if j + 1 < BOOST_LEVELS {
+            let below = cfg.gains_at(crate::num::pu_from_f64(speed / 1.002));
+            assert!(below.kp.bits() > level.kp.bits(), "below level {j}");
+        }
+    }
+    let off = MrasCurrentConfig::new(
+        &m,
+        &base,
+        MrasCurrentGains {
+            low_speed_schedule: false,
+            ..g
+        },
+    )
+    .unwrap();
+    assert_eq!(off.gains_at(Pu::ZERO), off.design);
+    assert_eq!(off.design, fixed);
+}

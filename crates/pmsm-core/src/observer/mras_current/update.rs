@@ -57,6 +57,13 @@ impl MrasCurrent {
         s
     }
 
+    /// Takes the adaptation gains of the low-speed schedule's level for the speed `omega`
+    /// (module docs, "Low-speed schedule"). Off the update's path: the drive calls it every
+    /// eighth sample with the estimated speed.
+    pub fn schedule(&mut self, omega: Pu) {
+        self.config.gains = self.config.gains_at(omega);
+    }
+
     /// The configuration.
     pub fn config(&self) -> &MrasCurrentConfig {
         &self.config
@@ -207,7 +214,7 @@ fn advance(prev: SinCos, now: SinCos) -> SinCos {
 fn integrate_saturated(c: &MrasCurrentConfig, raw: i64, integ: i64, xi: Pu) -> i64 {
     let hi = c.omega_max_wide;
     // |integ| < 2^59 and |K_i T_s ξ̃| < 2^62 (see `update`): the sum fits.
-    let with_i = integ + wide(xi.to_bits(), c.ki_ts.bits());
+    let with_i = integ + wide(xi.to_bits(), c.gains.ki_ts.bits());
     if c.kt.bits() == 0 {
         let pushes = (raw >= hi && xi > Pu::ZERO) || (raw <= -hi && xi < Pu::ZERO);
         if pushes { integ } else { with_i }
@@ -269,7 +276,8 @@ impl Estimator for MrasCurrent {
         self.xi = xi;
         // Mechanical model: the torque current less the load estimate accelerates the rotor;
         // the load estimate moves against ξ (module docs, "Through zero speed").
-        let i_load = self.i_load.saturating_sub(coef_mul(c.load_gain, xi));
+        let g = c.gains;
+        let i_load = self.i_load.saturating_sub(coef_mul(g.load_gain, xi));
         self.i_load = i_load;
         let torque = i.q.saturating_sub(i_load);
         // Speed, eq. 22, in Q9.55 with exact increments: |I| ≤ 2^57 (clamped to ±4 pu),
@@ -277,12 +285,12 @@ impl Estimator for MrasCurrent {
         // |K_i T_s ξ̃| < 2^62, |K_p ξ̃| < 2^62 in Q9.55: no sum below can wrap.
         let integ = self.integ + wide(torque.to_bits(), c.accel.bits())
             - wide(omega.to_bits(), c.friction.bits());
-        let p = coef_mul(c.kp, xi);
+        let p = coef_mul(g.kp, xi);
         let raw = ((p.to_bits() as i64) << INTEG_EXTRA) + integ;
         let hi = c.omega_max_wide;
         let integ = if -hi < raw && raw < hi {
             // Inside the limits: no anti-windup term.
-            integ + wide(xi.to_bits(), c.ki_ts.bits())
+            integ + wide(xi.to_bits(), g.ki_ts.bits())
         } else {
             integrate_saturated(c, raw, integ, xi)
         };
@@ -318,6 +326,7 @@ impl Estimator for MrasCurrent {
         self.i_hat = Dq::default();
         self.xi = Pu::ZERO;
         self.i_load = Pu::ZERO;
+        self.config.gains = self.config.gains_at(omega);
         self.seed = true;
         self.last = self.make_estimate(omega);
         self.prepare_next(omega);
