@@ -183,22 +183,12 @@ impl MrasCurrentConfig {
         } else {
             Coef::ZERO
         };
-        // The corner `R/√(L_d L_q)` of ξ's sensitivity at zero current, per unit of ω_b.
-        let corner = motor.rs_ohm / (libm::sqrt(motor.ld_h * motor.lq_h) * base.omega_e_rad_s);
-        let mut above = [Pu::ZERO; BOOST_LEVELS - 1];
-        for (a, c) in above.iter_mut().zip(BOOST_ABOVE) {
-            *a = pu_from_f64((c * corner).min(MAX_SPEED_PU));
-        }
-        // The highest level whose gains (`b_j` times, at most 4) all fit their formats.
-        let largest = kp.bits().max(ki_ts.bits()).max(load_gain.bits()) as i64;
-        let top = if gains.low_speed_schedule {
-            [(3, 2), (2, 1), (3, 1), (4, 1)]
-                .iter()
-                .take_while(|(n, d)| largest * n <= i32::MAX as i64 * d)
-                .count()
-        } else {
-            0
+        let design = Gains {
+            kp,
+            ki_ts,
+            load_gain,
         };
+        let (above, top) = low_speed_schedule(motor, base, &design, gains.low_speed_schedule);
         let accel = if mech {
             ts * motor.p() * motor.kt_nm_per_a * base.current_a
                 / (motor.j_kg_m2 * base.omega_e_rad_s)
@@ -243,16 +233,8 @@ impl MrasCurrentConfig {
             accel: coef("j_kg_m2", accel, 0.0, MECH_MAX)?,
             friction: coef("b_nm_s", friction, 0.0, MECH_MAX)?,
             kt,
-            gains: Gains {
-                kp,
-                ki_ts,
-                load_gain,
-            },
-            design: Gains {
-                kp,
-                ki_ts,
-                load_gain,
-            },
+            gains: design,
+            design,
             above,
             top,
             omega_max: pu_from_f64(omega_max),
@@ -279,6 +261,46 @@ impl MrasCurrentConfig {
     pub(super) fn gains_at(&self, omega: Pu) -> Gains {
         self.design.boosted(self.level(omega))
     }
+}
+
+/// The low-speed schedule's thresholds `c_j ω_c` (per unit, descending) and its top level
+/// for the design gains `design` (module docs, "Low-speed schedule"); level 0 only when `on`
+/// is false. Out of line: built once, and kept out of the constructors it would swell.
+#[inline(never)]
+fn low_speed_schedule(
+    motor: &MotorParams,
+    base: &PerUnit,
+    design: &Gains,
+    on: bool,
+) -> ([Pu; BOOST_LEVELS - 1], usize) {
+    // The corner `R/√(L_d L_q)` of ξ's sensitivity at zero current, per unit of ω_b.
+    let corner = motor.rs_ohm / (libm::sqrt(motor.ld_h * motor.lq_h) * base.omega_e_rad_s);
+    let mut above = [Pu::ZERO; BOOST_LEVELS - 1];
+    for (a, c) in above.iter_mut().zip(BOOST_ABOVE) {
+        *a = threshold(c, corner);
+    }
+    // The highest level whose gains (`b_j` times, at most 4) all fit their formats.
+    let largest = design
+        .kp
+        .bits()
+        .max(design.ki_ts.bits())
+        .max(design.load_gain.bits()) as i64;
+    let top = if on {
+        [(3, 2), (2, 1), (3, 1), (4, 1)]
+            .iter()
+            .take_while(|(n, d)| largest * n <= i32::MAX as i64 * d)
+            .count()
+    } else {
+        0
+    };
+    (above, top)
+}
+
+/// The speed `c ω_c` (per unit) from which a level of the schedule holds. Out of line: a
+/// loop of four calls stays small in the image.
+#[inline(never)]
+fn threshold(c: f64, corner: f64) -> Pu {
+    pu_from_f64((c * corner).min(MAX_SPEED_PU))
 }
 
 /// The error for an SI gain whose per-unit coefficient does not fit its format.
