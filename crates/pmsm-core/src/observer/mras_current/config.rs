@@ -50,7 +50,9 @@ pub struct MrasCurrentConfig {
     /// `above[j − 1]` (per unit of speed, descending) down to `above[j]`; at most level `top`
     /// (the highest whose gains fit their formats; 0 with the schedule off).
     pub(super) above: [Pu; BOOST_LEVELS - 1],
-    pub(super) top: usize,
+    /// (`u32`, not `usize`: the drive image of the C interface has the same layout on the
+    /// host and the target.)
+    pub(super) top: u32,
     /// Speed clamp, per unit, and in Q9.55.
     pub(super) omega_max: Pu,
     pub(super) omega_max_wide: i64,
@@ -253,7 +255,7 @@ impl MrasCurrentConfig {
             .iter()
             .take_while(|a| speed < **a)
             .count()
-            .min(self.top)
+            .min(self.top as usize)
     }
 
     /// The gains of the schedule's level for the estimated speed `omega`.
@@ -272,7 +274,7 @@ fn low_speed_schedule(
     base: &PerUnit,
     design: &Gains,
     on: bool,
-) -> ([Pu; BOOST_LEVELS - 1], usize) {
+) -> ([Pu; BOOST_LEVELS - 1], u32) {
     // The corner `R/√(L_d L_q)` of ξ's sensitivity at zero current, per unit of ω_b.
     let corner = motor.rs_ohm / (libm::sqrt(motor.ld_h * motor.lq_h) * base.omega_e_rad_s);
     let mut above = [Pu::ZERO; BOOST_LEVELS - 1];
@@ -289,7 +291,7 @@ fn low_speed_schedule(
         [(3, 2), (2, 1), (3, 1), (4, 1)]
             .iter()
             .take_while(|(n, d)| largest * n <= i32::MAX as i64 * d)
-            .count()
+            .count() as u32
     } else {
         0
     };

@@ -153,7 +153,7 @@ fn low_speed_schedule_follows_its_definition() {
         ..MrasCurrentGains::default_for(&m, &base)
     };
     let cfg = MrasCurrentConfig::new(&m, &base, g).unwrap();
-    assert_eq!(cfg.top, BOOST_LEVELS - 1);
+    assert_eq!(cfg.top as usize, BOOST_LEVELS - 1);
     let corner = m.rs_ohm / libm::sqrt(m.ld_h * m.lq_h) / base.omega_e_rad_s;
     let fixed = cfg.design;
     for (j, factor) in b.iter().enumerate() {
