@@ -392,12 +392,12 @@ impl Drive {
     /// The estimator on the period that just ended, and the speed the speed loop sees.
     #[inline(always)]
     fn estimate(&mut self, i: AlphaBeta) -> Estimate {
-        // The estimator always sees the period that just ended.
         // The current-model MRAS's low-speed gain schedule, every eighth sample on the slot
-        // with the least other work (the monitor's stuck-channel check).
+        // with the least other work (where the monitor checks for stuck channels).
         if self.slot == SCHEDULE_SLOT {
             self.estimator.schedule();
         }
+        // The estimator always sees the period that just ended.
         let estimate = self.estimator.update(&ObserverInput { i, v: self.v_est });
         self.telemetry.estimate = estimate;
         self.speed_filtered = follow(

@@ -260,9 +260,7 @@ impl AnyEstimator {
             _ => None,
         }
     }
-}
 
-impl AnyEstimator {
     /// The current-model MRAS takes the gains of its low-speed schedule for its estimated
     /// speed ([`MrasCurrent::schedule`]); the others have none.
     #[inline(always)]

@@ -89,9 +89,9 @@
 //! level `j` from `|ω̂| ≥ c_j ω_c` up, `c_j = 1/√(√(b_j b_{j+1}) − 1)` (the geometric midpoint
 //! to the next factor), the last down to zero. All three scale together, so the roots of the
 //! linearised loop stay near where they were designed down to `ω̂ ≈ ω_c/√3`, and `k_t` is
-//! unchanged. Levels whose gains would leave their formats are not used. The update reads its
-//! gains from the level in use; [`MrasCurrent::schedule`] picks the level (the drive, every
-//! eighth sample); [`MrasCurrentGains::low_speed_schedule`] turns it on (off by default:
+//! unchanged. Levels whose gains would leave their formats are not used. The update reads the
+//! gains in use from the configuration; [`MrasCurrent::schedule`] picks the level and writes
+//! them there (the drive, every eighth sample); [`MrasCurrentGains::low_speed_schedule`] turns it on (off by default:
 //! docs/khlaief2012.md §2 gives the measurements and the start it does not hold yet).
 //!
 //! The PI is the estimator's own: `ω̂ = clamp(K_p ξ + I, ±ω_max)`, the feed-forward of the
