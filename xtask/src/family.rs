@@ -317,7 +317,7 @@ fn manoeuvre(m: &Motor) -> Manoeuvre {
 /// The scenario file's text for `m` with `estimator`: every setting at its default but the
 /// dead-time compensation, which the file has off unless asked and the drive's own design
 /// (`DriveDesign::default_for`) has on.
-fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre) -> String {
+fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre, control: &[String]) -> String {
     let list = |xs: &[(f64, f64)], f: fn(&(f64, f64)) -> f64| {
         xs.iter()
             .map(|x| format!("{:.6}", f(x)))
@@ -329,7 +329,7 @@ fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre) -> String {
          motor = {{ name = \"family {}\", pole_pairs = {}, rs_ohm = {}, ld_h = {}, lq_h = {}, flux_wb = {}, \
          j_kg_m2 = {}, b_nm_s = {}, rated_current_a = {}, rated_speed_rpm = {} }}\n\
          [inverter]\nvdc_v = {}\npwm_hz = {}\ndead_time_s = {}\nmodel = \"switching\"\n\
-         [control]\nobserver = \"{estimator}\"\nstartup = \"auto\"\ndeadtime_compensation = true\n\
+         [control]\nobserver = \"{estimator}\"\nstartup = \"auto\"\ndeadtime_compensation = true\n{}\
          [initial]\ntheta_e_deg = {:.3}\n\
          [speed_ref]\nt_s = [{}]\nrpm = [{}]\n\
          [load]\nt_s = [{}]\nnm = [{}]\n",
@@ -347,6 +347,7 @@ fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre) -> String {
         m.vdc_v,
         m.pwm_hz,
         m.dead_time_s,
+        control.iter().map(|c| format!("{c}\n")).collect::<String>(),
         m.theta0_deg,
         list(&man.speed, |x| x.0),
         list(&man.speed, |x| x.1),
@@ -435,7 +436,7 @@ pub struct RunResult {
 }
 
 /// Runs every applicable estimator on every motor, `threads` at a time.
-pub fn run_all(motors: &[Motor], threads: usize) -> Result<Vec<RunResult>> {
+pub fn run_all(motors: &[Motor], threads: usize, control: &[String]) -> Result<Vec<RunResult>> {
     let jobs: Vec<(usize, &'static str)> = motors
         .iter()
         .flat_map(|m| {
@@ -457,7 +458,7 @@ pub fn run_all(motors: &[Motor], threads: usize) -> Result<Vec<RunResult>> {
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(&(mi, est)) = jobs.get(k) else { break };
                     let m = &motors[mi];
-                    match run_one(m, est, &dir.join(format!("m{mi}-{est}.toml"))) {
+                    match run_one(m, est, &dir.join(format!("m{mi}-{est}.toml")), control) {
                         Ok(outcome) => results.lock().unwrap().push(RunResult {
                             motor: mi,
                             estimator: est,
@@ -497,9 +498,14 @@ pub fn run_all(motors: &[Motor], threads: usize) -> Result<Vec<RunResult>> {
     Ok(results)
 }
 
-fn run_one(m: &Motor, estimator: &str, path: &std::path::Path) -> Result<Outcome> {
+fn run_one(
+    m: &Motor,
+    estimator: &str,
+    path: &std::path::Path,
+    control: &[String],
+) -> Result<Outcome> {
     let man = manoeuvre(m);
-    std::fs::write(path, scenario_text(m, estimator, &man))?;
+    std::fs::write(path, scenario_text(m, estimator, &man, control))?;
     let sc = scenario_file::read(path)?;
     let run = run_scenario(&sc)?;
     let outcome = classify(&run.rows, m, &man);
@@ -646,12 +652,13 @@ pub fn check(results: &[RunResult]) -> Vec<String> {
 }
 
 /// The section of docs/PERFORMANCE.md from `n` motors drawn with `seed`, and the bars it
-/// misses ([`check`]).
-pub fn section(n: usize, seed: u64) -> Result<(String, Vec<String>)> {
+/// misses ([`check`]); `control` holds `key = value` lines added to every run's `[control]`
+/// (none for the documented table: the drive's defaults).
+pub fn section(n: usize, seed: u64, control: &[String]) -> Result<(String, Vec<String>)> {
     let (motors, redrawn) = family(n, seed);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let started = std::time::Instant::now();
-    let results = run_all(&motors, threads)?;
+    let results = run_all(&motors, threads, control)?;
     let wall = started.elapsed().as_secs_f64();
     let mut s = String::from(SECTION_TITLE);
     let _ = write!(
@@ -671,6 +678,13 @@ pub fn section(n: usize, seed: u64) -> Result<(String, Vec<String>)> {
         100.0 * HOLD_SPEED,
         100.0 * SILENT_SPEED
     );
+    if !control.is_empty() {
+        let _ = write!(
+            s,
+            "**Not the defaults**: every run's `[control]` also sets `{}`.\n\n",
+            control.join("`, `")
+        );
+    }
     s.push_str(&report(&motors, redrawn, seed, &results));
     s.push('\n');
     Ok((s, check(&results)))
@@ -697,11 +711,12 @@ pub fn replace_section(doc: &str, section: &str) -> String {
     }
 }
 
-/// `cargo xtask family [N] [--seed S] [--check] [--write]`.
+/// `cargo xtask family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write]`.
 pub fn main(args: &[String]) -> Result<()> {
     let mut n = DOC_MOTORS;
     let mut seed = DEFAULT_SEED;
     let (mut check_bars, mut write) = (false, false);
+    let mut control = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -709,15 +724,26 @@ pub fn main(args: &[String]) -> Result<()> {
                 Some(s) => seed = s,
                 None => bail!("--seed needs a number"),
             },
+            "--control" => match it.next().and_then(|s| s.split_once('=')) {
+                Some((k, v)) if !k.trim().is_empty() && !v.trim().is_empty() => {
+                    control.push(format!("{} = {}", k.trim(), v.trim()));
+                }
+                _ => bail!("--control needs KEY=VALUE (a [control] key of the scenario file)"),
+            },
             "--check" => check_bars = true,
             "--write" => write = true,
             x => match x.parse() {
                 Ok(k) => n = k,
-                Err(_) => bail!("usage: cargo xtask family [N] [--seed S] [--check] [--write]"),
+                Err(_) => bail!(
+                    "usage: cargo xtask family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write]"
+                ),
             },
         }
     }
-    let (section, missed) = section(n, seed)?;
+    if write && !control.is_empty() {
+        bail!("--write records the drive's defaults: leave out --control");
+    }
+    let (section, missed) = section(n, seed, &control)?;
     print!("{section}");
     if write {
         let path = crate::root().join("docs/PERFORMANCE.md");
@@ -773,6 +799,29 @@ mod tests {
                 c.vdc_v
             );
         }
+    }
+
+    #[test]
+    fn control_keys_reach_every_runs_scenario() {
+        let (motors, _) = family(1, DEFAULT_SEED);
+        let m = &motors[0];
+        let man = manoeuvre(m);
+        let path =
+            std::env::temp_dir().join(format!("pmsm-family-test-{}.toml", std::process::id()));
+        let read = |control: &[String]| {
+            std::fs::write(&path, scenario_text(m, "mras-current", &man, control)).unwrap();
+            scenario_file::read(&path).unwrap().control
+        };
+        let with = read(&[
+            "mras_low_speed_schedule = true".into(),
+            "mras_bandwidth_hz = 30".into(),
+        ]);
+        let without = read(&[]);
+        std::fs::remove_file(&path).ok();
+        assert_eq!(with.mras_low_speed_schedule, Some(true));
+        assert_eq!(with.mras_bandwidth_hz, Some(30.0));
+        assert_eq!(without.mras_low_speed_schedule, None);
+        assert_eq!(without.mras_bandwidth_hz, None);
     }
 
     #[test]

@@ -63,6 +63,10 @@ pub struct Control {
     pub speed_bandwidth_hz: Option<f64>,
     /// MRAS-current adaptation bandwidth, Hz.
     pub mras_bandwidth_hz: Option<f64>,
+    /// Raise the MRAS-current adaptation gains at low speed, up to four times, where ξ's
+    /// sensitivity to the position error falls (`MrasCurrentGains::low_speed_schedule`,
+    /// docs/khlaief2012.md; default: the core's).
+    pub mras_low_speed_schedule: Option<bool>,
     /// Current limit of the speed loop, A peak (default: the rated peak current, `√2 ·
     /// rated_current_a`, the per-unit base `I_b`).
     pub current_limit_a: Option<f64>,

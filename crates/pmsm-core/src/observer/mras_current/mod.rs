@@ -91,8 +91,10 @@
 //! linearised loop stay near where they were designed down to `ω̂ ≈ ω_c/√3`, and `k_t` is
 //! unchanged. Levels whose gains would leave their formats are not used. The update reads the
 //! gains in use from the configuration; [`MrasCurrent::schedule`] picks the level and writes
-//! them there (the drive, every eighth sample); [`MrasCurrentGains::low_speed_schedule`] turns it on (off by default:
-//! docs/khlaief2012.md §2 gives the measurements and the start it does not hold yet).
+//! them there (the drive, every eighth sample); [`MrasCurrentGains::low_speed_schedule`] turns
+//! it on. Off by default: it saves reversals under load on the random family, and costs starts
+//! on a motor whose model or inverter is off, where the raised gains pass the voltage error
+//! (read as a speed `ΔV/ψ` near standstill) faster (docs/khlaief2012.md §2 gives both).
 //!
 //! The PI is the estimator's own: `ω̂ = clamp(K_p ξ + I, ±ω_max)`, the feed-forward of the
 //! mechanical model and `K_i T_s ξ` added to `I` every sample, `I` clamped to `±ω_max`. While
