@@ -316,7 +316,8 @@ fn manoeuvre(m: &Motor) -> Manoeuvre {
 
 /// The scenario file's text for `m` with `estimator`: every setting at its default but the
 /// dead-time compensation, which the file has off unless asked and the drive's own design
-/// (`DriveDesign::default_for`) has on.
+/// (`DriveDesign::default_for`) has on, and the `key = value` lines of `control` added to
+/// `[control]`.
 fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre, control: &[String]) -> String {
     let list = |xs: &[(f64, f64)], f: fn(&(f64, f64)) -> f64| {
         xs.iter()
@@ -435,7 +436,8 @@ pub struct RunResult {
     pub outcome: Outcome,
 }
 
-/// Runs every applicable estimator on every motor, `threads` at a time.
+/// Runs every applicable estimator on every motor, `threads` at a time, with the `key = value`
+/// lines of `control` in every run's `[control]`.
 pub fn run_all(motors: &[Motor], threads: usize, control: &[String]) -> Result<Vec<RunResult>> {
     let jobs: Vec<(usize, &'static str)> = motors
         .iter()

@@ -354,7 +354,7 @@ fn a_lock_lost_in_a_reversal_under_load_is_named_within_100_ms() {
 /// The same reversal with the current-model MRAS's low-speed gain schedule on (`[control]
 /// mras_low_speed_schedule = true`, docs/khlaief2012.md), then held at −half rated speed
 /// for 0.5 s: no fault. Through zero speed the estimate still slips, by one electrical turn,
-/// past a quarter turn for under 15 ms (8.8 ms measured), and locks again from the other side;
+/// past a quarter turn for under 15 ms (8.7 ms measured), and locks again from the other side;
 /// over the last 0.4 s the angle error is within 0.01 rad rms and the speed within 0.1 %.
 #[test]
 fn the_low_speed_schedule_carries_that_reversal_through() {
