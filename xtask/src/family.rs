@@ -713,7 +713,10 @@ pub fn replace_section(doc: &str, section: &str) -> String {
     }
 }
 
-/// `cargo xtask family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write]`.
+/// The arguments of `cargo xtask family`.
+pub const USAGE: &str = "family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write]";
+
+/// `cargo xtask family` ([`USAGE`]).
 pub fn main(args: &[String]) -> Result<()> {
     let mut n = DOC_MOTORS;
     let mut seed = DEFAULT_SEED;
@@ -736,9 +739,7 @@ pub fn main(args: &[String]) -> Result<()> {
             "--write" => write = true,
             x => match x.parse() {
                 Ok(k) => n = k,
-                Err(_) => bail!(
-                    "usage: cargo xtask family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write]"
-                ),
+                Err(_) => bail!("usage: cargo xtask {USAGE}"),
             },
         }
     }

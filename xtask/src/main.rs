@@ -100,7 +100,8 @@ fn main() -> Result<()> {
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write] | identify-family [N] [--seed S]"
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | {} | identify-family [N] [--seed S]",
+            family::USAGE
         ),
     }
 }

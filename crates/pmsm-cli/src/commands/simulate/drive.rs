@@ -185,10 +185,7 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
         design.speed.bandwidth_rad_s = TAU * hz;
     }
     if let Some(hz) = c.mras_bandwidth_hz {
-        design.mras_current = MrasCurrentGains {
-            low_speed_schedule: design.mras_current.low_speed_schedule,
-            ..MrasCurrentGains::design(model, TAU * hz)
-        };
+        design.mras_current = MrasCurrentGains::design(model, TAU * hz);
     }
     if let Some(on) = c.mras_low_speed_schedule {
         design.mras_current.low_speed_schedule = on;
