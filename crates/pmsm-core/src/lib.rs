@@ -104,7 +104,8 @@ mod units;
 pub use angle::{Angle, SinCos, sin_cos};
 pub use control::{
     CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, Pi, PiConfig,
-    PiOutput, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
+    PiOutput, Proportional, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign,
+    SpeedOutput,
 };
 pub use control::{
     FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,

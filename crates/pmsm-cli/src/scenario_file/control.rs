@@ -18,6 +18,18 @@ pub enum ObserverKind {
     MrasCurrent,
 }
 
+/// Forms of the speed loop (`pmsm_core::Proportional`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SpeedLoopForm {
+    /// Proportional action on the estimated speed only (Khlaief, Boussak, Gossa (2012)): no
+    /// overshoot, a ramp followed late.
+    Ip,
+    /// Proportional action on the error: a ramp followed without lag, an overshoot after a
+    /// step.
+    Pi,
+}
+
 /// Start-up modes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -61,6 +73,9 @@ pub struct Control {
     pub current_bandwidth_hz: Option<f64>,
     /// Speed-loop bandwidth, Hz.
     pub speed_bandwidth_hz: Option<f64>,
+    /// `"ip"` or `"pi"` (default: the core's, PI with the current-model MRAS, IP with the
+    /// back-EMF estimators).
+    pub speed_loop: Option<SpeedLoopForm>,
     /// MRAS-current adaptation bandwidth, Hz.
     pub mras_bandwidth_hz: Option<f64>,
     /// Raise the MRAS-current adaptation gains at low speed, up to four times, where ξ's

@@ -27,6 +27,7 @@
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
+//! speed_loop = "ip"                # "ip" or "pi" (default: pi with mras-current, else ip)
 //! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
 //!                                  # (default 1.0; 0 = off)
 //! mtpa = true                      # optional: maximum torque per ampere (interior motors)
@@ -61,7 +62,7 @@ pub mod faults;
 pub mod hardware;
 pub mod profiles;
 
-pub use control::{Compensation, CompensationMode, Control, ObserverKind, Startup};
+pub use control::{Compensation, CompensationMode, Control, ObserverKind, SpeedLoopForm, Startup};
 pub use faults::{Faults, Phase, PhasePair};
 pub use hardware::{Inverter, InverterKind, Sensing};
 pub use profiles::Breakpoints;

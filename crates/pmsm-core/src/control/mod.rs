@@ -26,7 +26,9 @@ pub use light_load::{
     LightLoad, LightLoadConfig,
 };
 pub use pi::{Pi, PiConfig, PiOutput};
-pub use speed::{SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput};
+pub use speed::{
+    Proportional, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
+};
 
 use crate::error::ConfigError;
 use crate::num::{Pu, sat_i32, wmul};

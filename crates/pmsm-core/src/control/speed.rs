@@ -1,11 +1,15 @@
-//! IP speed controller of Khlaief, Boussak, Gossa (2012) (nomenclature `K_iΩ`, `K_pΩ`; docs/khlaief2012.md §6–7).
+//! IP speed controller of Khlaief, Boussak, Gossa (2012) (nomenclature `K_iΩ`, `K_pΩ`; docs/khlaief2012.md §6–7),
+//! and its PI form.
 //!
 //! ```text
-//! i_q* = K_iΩ ∫(ω* − ω̂) dt − K_pΩ ω̂,   clamped to ±I_max
+//! IP:  i_q* = K_iΩ ∫(ω* − ω̂) dt − K_pΩ ω̂,          clamped to ±I_max
+//! PI:  i_q* = K_iΩ ∫(ω* − ω̂) dt + K_pΩ (ω* − ω̂),
 //! ```
 //!
-//! The proportional action acts on the measured (estimated) speed only, so a reference step
-//! does not kick the current, and the closed loop has no zero.
+//! In the IP form the proportional action acts on the measured (estimated) speed only, so a
+//! reference step does not kick the current, and the closed loop has no zero. Both forms have
+//! the same loop (the same response to the load and to the estimate); they differ only in how
+//! they follow the reference ([`Proportional`]).
 //!
 //! # Gains
 //!
@@ -23,14 +27,26 @@
 //! Defaults: `ζ = 1`, `ω_n` a tenth of the default current-loop bandwidth, `0.005/T_s`
 //! (70 rad/s at 14 kHz), `I_max` = 1 pu (rated peak current).
 //!
+//! # Following a ramp
+//!
+//! On a reference ramp `dω*/dt = α` the IP loop settles `(K K_pΩ + B/J) α/(K K_iΩ) ≈ 2ζα/ω_n`
+//! behind it: 730 r/min, a third of the reference, on a reversal of the random family with a
+//! 36 ms mechanical time constant (docs/drive.md, "speed loop: IP or PI"), where the rotor is
+//! then still turning the old way when a load that follows the reference changes sign. The PI form adds `K_pΩ ω*` to the IP's output, a zero at
+//! `K_iΩ/K_pΩ = ω_n/2ζ` in `ω/ω*`: with `B = 0` the loop is of type 2 and follows a ramp
+//! without lag, at the price of an overshoot after a step (`1 + e⁻²`, 13.5 %, at `t = 2/ω_n`
+//! with `ζ = 1`) and at the end of a ramp (`α/(e ω_n)` at `t = 1/ω_n`: 18 % of the lag the IP
+//! form would have had).
+//!
 //! # Anti-windup
 //!
-//! The PI of [`super::pi`] with `K_p = 0` and `ff = −K_pΩ ω̂`: conditional integration (no
+//! The PI of [`super::pi`] with `K_p = 0` and `ff = −K_pΩ ω̂` (IP; `ff = −K_pΩ (ω̂ − ω*)` in
+//! the PI form, the rest the same): conditional integration (no
 //! integration while the output is at a limit and the error drives it further) and an
 //! integrator clamped to `[−I_max + K_pΩ ω̂, I_max + K_pΩ ω̂]`. After a saturated acceleration
 //! the integrator leaves the clamp when `K_iΩ (ω* − ω̂) < K_pΩ dω̂/dt`, which is the state of
 //! the linear loop tracking a ramp; a ramp followed by a hold gives no overshoot either, so a
-//! saturated step does not overshoot (tests: `drive_parts_loops`).
+//! saturated step does not overshoot in the IP form (tests: `drive_parts_loops`).
 //!
 //! # State: the unclamped output, not the integral
 //!
@@ -88,6 +104,18 @@ pub const DEFAULT_BANDWIDTH_TS: f64 = 0.005;
 /// (docs/drive.md, "outer loops").
 pub const SPEED_LOOP_DECIMATION: u32 = 1;
 
+/// Where the speed loop's proportional action acts (module docs, "following a ramp").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Proportional {
+    /// On the estimated speed only, `−K_pΩ ω̂` (IP, Khlaief, Boussak, Gossa (2012) §6): no
+    /// overshoot, a ramp followed `≈ 2ζ/ω_n` seconds late.
+    #[default]
+    OnSpeed,
+    /// On the error, `K_pΩ (ω* − ω̂)` (PI): a ramp followed without lag, an overshoot after a
+    /// step.
+    OnError,
+}
+
 /// How the speed controller is designed; [`SpeedDesign::default_for`] gives the defaults.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpeedDesign {
@@ -103,11 +131,13 @@ pub struct SpeedDesign {
     /// `(K_iΩ, K_pΩ)` in A/(rad/s · s) and A/(rad/s) of electrical speed, overriding the
     /// design from `ω_n` and `ζ`.
     pub gains: Option<(f64, f64)>,
+    /// IP or PI form.
+    pub proportional: Proportional,
 }
 
 impl SpeedDesign {
     /// `ω_n = 0.005/T_s`, `ζ = 1`, `I_max = I_b` (rated peak), once every
-    /// [`SPEED_LOOP_DECIMATION`] samples.
+    /// [`SPEED_LOOP_DECIMATION`] samples, the IP form.
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
             bandwidth_rad_s: DEFAULT_BANDWIDTH_TS / base.sample_s,
@@ -115,6 +145,7 @@ impl SpeedDesign {
             current_limit_a: base.current_a,
             decimation: SPEED_LOOP_DECIMATION,
             gains: None,
+            proportional: Proportional::OnSpeed,
         }
     }
 }
@@ -259,6 +290,31 @@ impl SpeedController {
         self.ff = c.neg_kp.apply(omega);
         self.limit = c.i_max;
         self.s = (iq.max(-c.i_max).min(c.i_max).to_bits() as i64) << S_SHIFT;
+    }
+
+    /// The reference moved from `from` to `to` (the PI form; nothing in the IP form): adds
+    /// `K_pΩ (to − from)` to the output, clamped to the limit, as a step at the reference's
+    /// change would. The step itself stays the IP's, so the PI form costs the control path
+    /// nothing: its reference part acts where the reference is set.
+    pub fn move_reference(&mut self, from: Pu, to: Pu) {
+        let c = &self.config;
+        if c.design.proportional == Proportional::OnSpeed {
+            return;
+        }
+        // −K_pΩ (from − to) exact (LSB 2⁻⁴¹, |·| < 2⁶²), added to the state at that LSB
+        // and its 15 lower bits kept: a reference moved in many small steps adds up to its
+        // whole move (a kick rounded at every step would drift by up to ½ LSB each).
+        const LOW: u32 = S_SHIFT - KP_FRAC;
+        let kick = c.neg_kp.wide(from.saturating_sub(to).to_bits());
+        let sum = (self.s >> LOW) + kick;
+        let limit = (self.limit.to_bits() as i64) << KP_FRAC;
+        self.s = if sum >= limit {
+            limit << LOW
+        } else if sum <= -limit {
+            -limit << LOW
+        } else {
+            (sum << LOW) | (self.s & ((1 << LOW) - 1))
+        };
     }
 
     /// Sets the output's limit to `limit` within `[0, I_max]`; the next step clamps to it.

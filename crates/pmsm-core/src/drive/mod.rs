@@ -204,10 +204,16 @@ impl Drive {
     /// The closed loop's reference is computed here, once, not at every step. (Out of line:
     /// inlined, a setter that reads the configuration made callers keep one more copy of the
     /// drive on their stack.)
+    /// In the closed loop the PI form of the speed loop takes the reference's proportional
+    /// part here ([`crate::SpeedController::move_reference`]).
     #[inline(never)]
     pub fn set_speed_ref(&mut self, omega: Pu) {
+        let from = self.speed_ref_run;
         self.speed_ref = omega;
         self.speed_ref_run = self.run_speed_ref();
+        if self.state == DriveState::Run {
+            self.speed.move_reference(from, self.speed_ref_run);
+        }
     }
 
     /// The speed reference clamped to the maximum speed (max/min: no panic path).

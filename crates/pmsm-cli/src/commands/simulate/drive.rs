@@ -1,13 +1,13 @@
 //! The fixed-point drive of a scenario, from its `[inverter]` and `[control]` tables and its
 //! motor: the one place where the per-unit bases, the design and the configuration are made.
 
-use crate::scenario_file::{CompensationMode, ObserverKind, Scenario, Startup};
+use crate::scenario_file::{CompensationMode, ObserverKind, Scenario, SpeedLoopForm, Startup};
 use anyhow::{Result, anyhow, bail};
 use pmsm_core::DeadTimeMode;
 use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
 use pmsm_core::{DistortionDesign, DistortionLearner};
 use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode, Tracker, TrackerDesign};
-use pmsm_core::{EstimatorKind, MrasCurrentGains};
+use pmsm_core::{EstimatorKind, MrasCurrentGains, Proportional};
 use std::f64::consts::TAU;
 
 /// The drive of a scenario and what the loop needs to talk to it in SI units.
@@ -183,6 +183,12 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     }
     if let Some(hz) = c.speed_bandwidth_hz {
         design.speed.bandwidth_rad_s = TAU * hz;
+    }
+    if let Some(form) = c.speed_loop {
+        design.speed.proportional = match form {
+            SpeedLoopForm::Ip => Proportional::OnSpeed,
+            SpeedLoopForm::Pi => Proportional::OnError,
+        };
     }
     if let Some(hz) = c.mras_bandwidth_hz {
         design.mras_current = MrasCurrentGains::design(model, TAU * hz);
