@@ -73,8 +73,8 @@ pub struct Control {
     pub current_bandwidth_hz: Option<f64>,
     /// Speed-loop bandwidth, Hz.
     pub speed_bandwidth_hz: Option<f64>,
-    /// `"ip"` or `"pi"` (default: the core's, PI with the current-model MRAS, IP with the
-    /// back-EMF estimators).
+    /// `"ip"` or `"pi"` (default: the core's, `"ip"` with every estimator; docs/drive.md,
+    /// "speed loop: IP or PI").
     pub speed_loop: Option<SpeedLoopForm>,
     /// MRAS-current adaptation bandwidth, Hz.
     pub mras_bandwidth_hz: Option<f64>,

@@ -27,7 +27,7 @@
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
-//! speed_loop = "ip"                # "ip" or "pi" (default: pi with mras-current, else ip)
+//! speed_loop = "pi"                # "ip" (the default) or "pi": a ramp followed without lag
 //! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
 //!                                  # (default 1.0; 0 = off)
 //! mtpa = true                      # optional: maximum torque per ampere (interior motors)
