@@ -262,9 +262,10 @@ fn bench_drive_step(meter: &Meter, rec: &CaseData<'static>, drive: Option<Drive>
 /// (docs/field-weakening.md, "Cost"), started. Fed currents recorded with the default drive's
 /// d reference, its estimator sees voltages that did not make them, and its estimated speed
 /// leaves the recorded one (by 0.35 pu on motor B's run): what is measured is the cost of its
-/// steps on that trajectory, not on one it would run itself. (With the current-model MRAS's
-/// low-speed schedule on, the same replay went into steps with the voltage on the circle that
-/// cost up to 1808 instructions on the Cortex-M4 and 5107 on the Cortex-M0.)
+/// steps on that trajectory, not on one it would run itself. (In a trial build with the PI
+/// speed loop and the current-model MRAS's low-speed schedule as defaults, the same replay
+/// went into steps with the voltage on the circle that cost up to 1808 instructions on the
+/// Cortex-M4 and 5107 on the Cortex-M0.)
 fn drive_with_flux() -> Option<Drive> {
     let b = Setup::motor_b().ok()?;
     let mut design = b
