@@ -34,20 +34,20 @@
 //! 36 ms mechanical time constant (docs/drive.md, "speed loop: IP or PI"), where the rotor is
 //! then still turning the old way when a load that follows the reference changes sign. The
 //! PI form adds `K_pΩ ω*` to the IP's output, a zero at `K_iΩ/K_pΩ = ω_n/2ζ` in `ω/ω*`: with
-//! `B = 0` the loop is of type 2 and follows a ramp without lag, at the price of an overshoot after a step (`1 + e⁻²`, 13.5 %, at `t = 2/ω_n`
-//! with `ζ = 1`) and at the end of a ramp (`α/(e ω_n)` at `t = 1/ω_n`: 18 % of the lag the IP
-//! form would have had).
+//! `B = 0` the loop is of type 2 and follows a ramp without lag, at the price of an overshoot
+//! after a step (`1 + e⁻²`, 13.5 %, at `t = 2/ω_n` with `ζ = 1`) and at the end of a ramp
+//! (`α/(e ω_n)` at `t = 1/ω_n`: 18 % of the lag the IP form would have had).
 //!
 //! # Anti-windup
 //!
 //! The PI of [`super::pi`] with `K_p = 0` and `ff = −K_pΩ ω̂` (IP; `ff = −K_pΩ (ω̂ − ω*)` in
 //! the PI form, whose reference part [`SpeedController::move_reference`] adds): conditional
 //! integration (no integration while the output is at a limit and the error drives it
-//! further) and an
-//! integrator clamped to `[−I_max + K_pΩ ω̂, I_max + K_pΩ ω̂]`. After a saturated acceleration
-//! the integrator leaves the clamp when `K_iΩ (ω* − ω̂) < K_pΩ dω̂/dt`, which is the state of
-//! the linear loop tracking a ramp; a ramp followed by a hold gives no overshoot either, so a
-//! saturated step does not overshoot in the IP form (tests: `drive_parts_loops`).
+//! further) and an integrator clamped to `[−I_max + K_pΩ ω̂, I_max + K_pΩ ω̂]`. After a
+//! saturated acceleration the integrator leaves the clamp when `K_iΩ (ω* − ω̂) < K_pΩ dω̂/dt`,
+//! which is the state of the linear loop tracking a ramp; a ramp followed by a hold gives no
+//! overshoot either, so a saturated step does not overshoot in the IP form (tests:
+//! `drive_parts_loops`).
 //!
 //! # State: the unclamped output, not the integral
 //!
