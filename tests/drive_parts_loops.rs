@@ -4,9 +4,9 @@
 
 use pmsm_core::Dq;
 use pmsm_core::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput};
+use pmsm_core::{IP_FORM, PI_FORM, SpeedConfig, SpeedController, SpeedDesign};
 use pmsm_core::{PerUnit, to_f64};
 use pmsm_core::{Pi, PiConfig};
-use pmsm_core::{Proportional, SpeedConfig, SpeedController, SpeedDesign};
 use pmsm_core::{Pu, pu_from_f64};
 use pmsm_plant::{Mechanics, Motor, MotorModel, Saturation};
 use pmsm_tests::drive_ref::{
@@ -186,18 +186,20 @@ fn speed_loop_matches_f64_ip_within_one_lsb() {
 }
 
 /// The speed loop on a rigid rotor `dω/dt = K i_q` (motor B's `K = p K_T/J`, no friction)
-/// following a ramp at the acceleration 30 % of `I_max` gives, in both forms. The PI form
-/// (its reference part added where the reference moves, `SpeedController::move_reference`)
-/// against the f64 PI with `ff = −K_pΩ (ω̂ − ω*)`: within 1 LSB, never saturated. The IP form
-/// settles `(2ω_n − B/J) α/ω_n²` behind the ramp (within 2 %); the PI form under 1 % of that.
+/// following a ramp at the acceleration 30 % of `I_max` gives, with the reference's weight `b`
+/// 0 (IP), ½ (the drive's default with the current-model MRAS) and 1 (PI). With a weight (its
+/// part added where the reference moves, `SpeedController::move_reference`) against the f64
+/// PI with `ff = −K_pΩ (ω̂ − b ω*)`: within 1 LSB, never saturated. The IP form settles
+/// `(2ω_n − B/J) α/ω_n²` behind the ramp (within 2 %); the weight `b` leaves `(1 − b)` of that
+/// (within 1 % of the IP's lag).
 #[test]
-fn speed_loop_pi_form_follows_a_ramp() {
+fn speed_loop_reference_weight_follows_a_ramp() {
     let m = motor_b();
     let base = base_b();
-    let lag = |proportional| {
+    let lag = |reference_weight: f64| {
         let design = SpeedDesign {
             decimation: 1,
-            proportional,
+            reference_weight,
             ..SpeedDesign::default_for(&base)
         };
         let sc = SpeedConfig::new(&m, &base, design).unwrap();
@@ -219,8 +221,9 @@ fn speed_loop_pi_form_follows_a_ramp() {
             let wf = pu_from_f64(w);
             let out = fixed.step(wr, wf);
             assert!(!out.saturated, "step {k}");
-            if proportional == Proportional::OnError {
-                let ff = -(sc.kp_pu() * to_f64(wf) / LSB).round() * LSB + sc.kp_pu() * to_f64(wr);
+            if reference_weight > 0.0 {
+                let ff =
+                    -(sc.kp_pu() * to_f64(wf) / LSB).round() * LSB + sc.kp_ref_pu() * to_f64(wr);
                 let e = to_f64(wr.saturating_sub(wf));
                 let i_max = to_f64(sc.i_max());
                 let (u, _) = reference.step(e, ff, -i_max, i_max, false);
@@ -233,14 +236,20 @@ fn speed_loop_pi_form_follows_a_ramp() {
         let b_j = m.b_nm_s / m.j_kg_m2;
         (lag, (2.0 * wn - b_j) * alpha / (wn * wn), worst)
     };
-    let (ip, ip_model, _) = lag(Proportional::OnSpeed);
-    let (pi, _, worst) = lag(Proportional::OnError);
+    let (ip, ip_model, _) = lag(IP_FORM);
+    let (half, _, worst_half) = lag(0.5);
+    let (pi, _, worst) = lag(PI_FORM);
     println!(
-        "ramp lag: IP {ip:.3e} pu (model {ip_model:.3e}), PI {pi:.3e} pu; PI fixed vs f64 worst {worst} LSB"
+        "ramp lag: IP {ip:.3e} pu (model {ip_model:.3e}), b = 1/2 {half:.3e} pu, PI {pi:.3e} pu; \
+         fixed vs f64 worst {worst_half} and {worst} LSB"
     );
     assert!((ip / ip_model - 1.0).abs() < 0.02, "{ip} {ip_model}");
+    assert!((half - 0.5 * ip).abs() < 0.01 * ip, "{half} {ip}");
     assert!(pi.abs() < 0.01 * ip, "{pi} {ip}");
-    assert!(worst <= 1.0, "worst {worst} LSB");
+    assert!(
+        worst <= 1.0 && worst_half <= 1.0,
+        "worst {worst}, {worst_half} LSB"
+    );
 }
 
 /// Current-loop run: motor B (linear magnetics: the design is for the nominal inductances) at

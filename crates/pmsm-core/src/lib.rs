@@ -103,8 +103,8 @@ mod units;
 
 pub use angle::{Angle, SinCos, sin_cos};
 pub use control::{
-    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, Pi, PiConfig,
-    PiOutput, Proportional, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign,
+    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, IP_FORM, PI_FORM,
+    Pi, PiConfig, PiOutput, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign,
     SpeedOutput,
 };
 pub use control::{
@@ -112,7 +112,7 @@ pub use control::{
 };
 pub use control::{
     LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT, LIGHT_LOAD_RAISED_PER_LIMIT,
-    LightLoad, LightLoadConfig,
+    LOW_SPEED_FADE_PER_RATED, LightLoad, LightLoadConfig, LowSpeedConfig,
 };
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
@@ -141,6 +141,7 @@ pub use observer::direction::{
 };
 pub use observer::emf::MIN_EMF_PU;
 pub use observer::mras_emf::{
+    ADAPTATION_BANDWIDTH_TS as MRAS_EMF_ADAPTATION_BANDWIDTH_TS,
     MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU, PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
 };
 pub use observer::{

@@ -164,16 +164,18 @@ fn the_detected_angle_and_the_telemetry_are_readable() {
 
     let pu = |x: i32| x as f64 / (1 << 24) as f64;
     let rpm = pu(t.omega_est) * b.omega_e_rad_s * 60.0 / std::f64::consts::TAU / 3.0;
-    // Still catching up with the 600 r/min reference (ramped in 0.15 s, a heavy rotor).
+    // At or near the 600 r/min reference (ramped in 0.15 s, a heavy rotor, 0.18 s before).
     assert!((450.0..620.0).contains(&rpm), "estimated {rpm} r/min");
     // Closed loop on the estimate: the controller's frame is the estimator's.
     assert_eq!(t.theta, t.theta_est);
-    // A running motor: forward torque current, both currents within 0.05 pu of their
-    // references (the d reference is the light-load current at this light load,
-    // docs/drive.md), and a commanded voltage above 95 % of the steady-state model's at the
-    // measured currents and the estimated speed (motor B: R 7.2 ohm, L_d 25.0 mH, L_q 40.2 mH,
-    // psi 0.305 V*s) and within the modulator's circle (V_dc / sqrt 3).
-    assert!(pu(t.i_q) > 0.0, "{t:?}");
+    // A running motor at no load (one sample of it: after the step to 600 r/min this run
+    // swings through the inverter's zero crossings, docs/drive.md "light load", by up to
+    // 0.3 A): a torque current within 0.25 pu of zero, both currents within 0.05 pu of their
+    // references (the d reference is the light-load current at this light load), and a
+    // commanded voltage above 90 % of the steady-state model's at the measured currents and
+    // the estimated speed, which ripples by a few percent (motor B: R 7.2 ohm, L_d 25.0 mH,
+    // L_q 40.2 mH, psi 0.305 V*s), and within the modulator's circle (V_dc / sqrt 3).
+    assert!(pu(t.i_q).abs() < 0.25, "{t:?}");
     assert!((pu(t.i_q) - pu(t.i_q_ref)).abs() < 0.05, "{t:?}");
     assert!(
         pu(t.i_d_ref) < 0.0 && (pu(t.i_d) - pu(t.i_d_ref)).abs() < 0.05,
@@ -186,8 +188,8 @@ fn the_detected_angle_and_the_telemetry_are_readable() {
     let model = vd.hypot(vq);
     let v = pu(t.v_alpha).hypot(pu(t.v_beta)) * b.voltage_v;
     assert!(
-        v > 0.95 * model && v <= 540.0 / 3f64.sqrt(),
-        "|v| = {v} V, model {model} V"
+        v > 0.9 * model && v <= 540.0 / 3f64.sqrt(),
+        "|v| = {v} V, model {model} V at {rpm} r/min, {t:?}"
     );
     // The current-model MRAS explains the measurement to well within 0.2 pu when locked.
     assert!(

@@ -1,7 +1,7 @@
 //! `[control]`: the estimator, the start-up, dead-time compensation, and the overrides of
 //! the drive's default design (gains, bandwidths, limits, the model's errors).
 
-use pmsm_core::{ParamError, in_range, positive};
+use pmsm_core::{ParamError, ParamReason, in_range, positive};
 use serde::Deserialize;
 
 /// Estimators a drive can use.
@@ -18,7 +18,7 @@ pub enum ObserverKind {
     MrasCurrent,
 }
 
-/// Forms of the speed loop (`pmsm_core::Proportional`).
+/// Forms of the speed loop (`pmsm_core::SpeedDesign::reference_weight` 0 and 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SpeedLoopForm {
@@ -73,9 +73,14 @@ pub struct Control {
     pub current_bandwidth_hz: Option<f64>,
     /// Speed-loop bandwidth, Hz.
     pub speed_bandwidth_hz: Option<f64>,
-    /// `"ip"` or `"pi"` (default: the core's, `"ip"` with every estimator; docs/drive.md,
-    /// "speed loop: IP or PI").
+    /// `"ip"` or `"pi"`: the reference's weight in the speed loop's proportional action 0 or
+    /// 1 (default: the drive's, 0.5 with the current-model MRAS and 0 with the back-EMF
+    /// estimators; docs/drive.md, "speed loop: the reference's weight").
     pub speed_loop: Option<SpeedLoopForm>,
+    /// The reference's weight in the speed loop's proportional action, in [0, 1] (0: the IP
+    /// form, 1: the PI form; `pmsm_core::SpeedDesign::reference_weight`); not with
+    /// `speed_loop`.
+    pub speed_reference_weight: Option<f64>,
     /// MRAS-current adaptation bandwidth, Hz.
     pub mras_bandwidth_hz: Option<f64>,
     /// Raise the MRAS-current adaptation gains at low speed, up to four times, where ξ's
@@ -124,6 +129,11 @@ pub struct Control {
     /// compensation's band, at most a sixth of the current limit, with the current-model
     /// MRAS; 0 with the other estimators; 0 turns it off).
     pub light_load_id_a: Option<f64>,
+    /// The positive d-axis current the drive holds at low speed, A peak, faded out at a fifth
+    /// of the rated speed (docs/drive.md, "low-speed current"; default
+    /// `pmsm_core::LowSpeedConfig::default_current_a`: the current limit, less on a strongly
+    /// salient motor; 0 turns it off; at most the current limit).
+    pub low_speed_id_a: Option<f64>,
     /// Measure the inverter's distortion voltage at standstill before the run and scale the
     /// dead-time compensation to it (`pmsm_core::DriveDesign::deadtime_calibration`; default
     /// on when the compensation acts on the command and the drive is told a dead time).
@@ -153,6 +163,18 @@ impl Control {
         }
         if let Some(i) = self.light_load_id_a {
             in_range("control.light_load_id_a", i, 0.0, 1e4)?;
+        }
+        if let Some(i) = self.low_speed_id_a {
+            in_range("control.low_speed_id_a", i, 0.0, 1e4)?;
+        }
+        if let Some(b) = self.speed_reference_weight {
+            in_range("control.speed_reference_weight", b, 0.0, 1.0)?;
+            if self.speed_loop.is_some() {
+                return Err(ParamError {
+                    key: "control.speed_reference_weight",
+                    reason: ParamReason::Inconsistent("control.speed_loop (give one of them)"),
+                });
+            }
         }
         if let Some(n) = self.pwm_update_delay_periods {
             in_range("control.pwm_update_delay_periods", n as f64, 0.0, 16.0)?;

@@ -27,7 +27,11 @@
 //! observer_gain = 1000.0           # optional gains; defaults come from the motor
 //! current_bandwidth_hz = 500.0
 //! speed_bandwidth_hz = 10.0
-//! speed_loop = "pi"                # "ip" (the default) or "pi": a ramp followed without lag
+//! speed_loop = "pi"                # "ip" or "pi": a ramp followed without lag (default: the
+//!                                  # drive's, the reference weighed by a half with the
+//!                                  # current-model MRAS; or speed_reference_weight = 0..1)
+//! low_speed_id_a = 0.0             # the positive d current held at low speed (default: the
+//!                                  # current limit, faded out at a fifth of rated speed)
 //! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
 //!                                  # (default 1.0; 0 = off)
 //! mtpa = true                      # optional: maximum torque per ampere (interior motors)

@@ -14,6 +14,7 @@
 pub(crate) mod current;
 pub(crate) mod flux;
 pub(crate) mod light_load;
+pub(crate) mod low_speed;
 pub(crate) mod pi;
 pub(crate) mod speed;
 
@@ -25,9 +26,10 @@ pub use light_load::{
     LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT, LIGHT_LOAD_RAISED_PER_LIMIT,
     LightLoad, LightLoadConfig,
 };
+pub use low_speed::{LOW_SPEED_FADE_PER_RATED, LowSpeedConfig};
 pub use pi::{Pi, PiConfig, PiOutput};
 pub use speed::{
-    Proportional, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
+    IP_FORM, PI_FORM, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
 };
 
 use crate::error::ConfigError;

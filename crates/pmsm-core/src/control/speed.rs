@@ -1,15 +1,17 @@
 //! IP speed controller of Khlaief, Boussak, Gossa (2012) (nomenclature `K_iΩ`, `K_pΩ`; docs/khlaief2012.md §6–7),
-//! and its PI form.
+//! its PI form, and the forms between them.
 //!
 //! ```text
 //! IP:  i_q* = K_iΩ ∫(ω* − ω̂) dt − K_pΩ ω̂,          clamped to ±I_max
 //! PI:  i_q* = K_iΩ ∫(ω* − ω̂) dt + K_pΩ (ω* − ω̂),
+//! b:   i_q* = K_iΩ ∫(ω* − ω̂) dt + K_pΩ (b ω* − ω̂),  b ∈ [0, 1] (IP: 0, PI: 1)
 //! ```
 //!
 //! In the IP form the proportional action acts on the measured (estimated) speed only, so a
-//! reference step does not kick the current, and the closed loop has no zero. Both forms have
+//! reference step does not kick the current, and the closed loop has no zero. All forms have
 //! the same loop (the same response to the load and to the estimate); they differ only in how
-//! they follow the reference ([`Proportional`]).
+//! they follow the reference ([`SpeedDesign::reference_weight`], the setpoint weight `b` of a
+//! two-degree-of-freedom PI).
 //!
 //! # Gains
 //!
@@ -36,12 +38,15 @@
 //! PI form adds `K_pΩ ω*` to the IP's output, a zero at `K_iΩ/K_pΩ = ω_n/2ζ` in `ω/ω*`: with
 //! `B = 0` the loop is of type 2 and follows a ramp without lag, at the price of an overshoot
 //! after a step (`1 + e⁻²`, 13.5 %, at `t = 2/ω_n` with `ζ = 1`) and at the end of a ramp
-//! (`α/(e ω_n)` at `t = 1/ω_n`: 18 % of the lag the IP form would have had).
+//! (`α/(e ω_n)` at `t = 1/ω_n`: 18 % of the lag the IP form would have had). A weight `b`
+//! adds `b K_pΩ ω*`: the zero moves to `ω_n/(2ζb)`, the ramp is followed `(1 − b)` of the IP's
+//! lag late, and the overshoot shrinks with it (the response is the IP's plus `b` times the
+//! PI's difference from it, both linear in the reference).
 //!
 //! # Anti-windup
 //!
-//! The PI of [`super::pi`] with `K_p = 0` and `ff = −K_pΩ ω̂` (IP; `ff = −K_pΩ (ω̂ − ω*)` in
-//! the PI form, whose reference part [`SpeedController::move_reference`] adds): conditional
+//! The PI of [`super::pi`] with `K_p = 0` and `ff = −K_pΩ ω̂` (IP; `ff = −K_pΩ (ω̂ − b ω*)`
+//! with a weight, whose reference part [`SpeedController::move_reference`] adds): conditional
 //! integration (no integration while the output is at a limit and the error drives it
 //! further) and an integrator clamped to `[−I_max + K_pΩ ω̂, I_max + K_pΩ ω̂]`. After a
 //! saturated acceleration the integrator leaves the clamp when `K_iΩ (ω* − ω̂) < K_pΩ dω̂/dt`,
@@ -105,17 +110,11 @@ pub const DEFAULT_BANDWIDTH_TS: f64 = 0.005;
 /// (docs/drive.md, "outer loops").
 pub const SPEED_LOOP_DECIMATION: u32 = 1;
 
-/// Where the speed loop's proportional action acts (module docs, "following a ramp").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Proportional {
-    /// On the estimated speed only, `−K_pΩ ω̂` (IP, Khlaief, Boussak, Gossa (2012) §6): no
-    /// overshoot, a ramp followed `≈ 2ζ/ω_n` seconds late.
-    #[default]
-    OnSpeed,
-    /// On the error, `K_pΩ (ω* − ω̂)` (PI): a ramp followed without lag, an overshoot after a
-    /// step.
-    OnError,
-}
+/// [`SpeedDesign::reference_weight`] of the IP form of Khlaief, Boussak, Gossa (2012): the
+/// proportional action on the estimated speed only.
+pub const IP_FORM: f64 = 0.0;
+/// [`SpeedDesign::reference_weight`] of the PI form: the proportional action on the error.
+pub const PI_FORM: f64 = 1.0;
 
 /// How the speed controller is designed; [`SpeedDesign::default_for`] gives the defaults.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,13 +131,18 @@ pub struct SpeedDesign {
     /// `(K_iΩ, K_pΩ)` in A/(rad/s · s) and A/(rad/s) of electrical speed, overriding the
     /// design from `ω_n` and `ζ`.
     pub gains: Option<(f64, f64)>,
-    /// IP or PI form.
-    pub proportional: Proportional,
+    /// The share `b` of the reference in the proportional action, in `[0, 1]`:
+    /// `i_q* = K_iΩ ∫(ω* − ω̂) dt + K_pΩ (b ω* − ω̂)` (module docs, "following a ramp"):
+    /// [`IP_FORM`] (0, Khlaief, Boussak, Gossa (2012)) follows a ramp `≈ 2ζα/ω_n` late without
+    /// overshoot, [`PI_FORM`] (1) without lag, overshooting its end; in between, `(1 − b)` of
+    /// the lag.
+    pub reference_weight: f64,
 }
 
 impl SpeedDesign {
     /// `ω_n = 0.005/T_s`, `ζ = 1`, `I_max = I_b` (rated peak), once every
-    /// [`SPEED_LOOP_DECIMATION`] samples, the IP form.
+    /// [`SPEED_LOOP_DECIMATION`] samples, the IP form (the drive's default for the
+    /// current-model MRAS weighs the reference by a half: `DriveDesign::default_for`).
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
             bandwidth_rad_s: DEFAULT_BANDWIDTH_TS / base.sample_s,
@@ -146,7 +150,7 @@ impl SpeedDesign {
             current_limit_a: base.current_a,
             decimation: SPEED_LOOP_DECIMATION,
             gains: None,
-            proportional: Proportional::OnSpeed,
+            reference_weight: IP_FORM,
         }
     }
 }
@@ -158,6 +162,8 @@ pub struct SpeedConfig {
     ki_t: Coef<KI_FRAC>,
     /// `−K_pΩ` per unit (negated: `ff = −K_pΩ ω̂` without a negation per sample).
     neg_kp: Coef<KP_FRAC>,
+    /// `−b K_pΩ` per unit: the reference's part ([`SpeedController::move_reference`]).
+    neg_kp_ref: Coef<KP_FRAC>,
     /// `I_max` per unit.
     i_max: Pu,
     /// Gains used, SI: `(K_iΩ, K_pΩ)`.
@@ -181,6 +187,7 @@ impl SpeedConfig {
     ) -> Result<Self, ConfigError> {
         motor.validate()?;
         in_range("speed.decimation", design.decimation as f64, 1.0, 1000.0)?;
+        let b = in_range("speed.reference_weight", design.reference_weight, 0.0, 1.0)?;
         let t = base.sample_s * design.decimation as f64;
         let i_max_a = in_range(
             "speed.current_limit_a",
@@ -205,6 +212,12 @@ impl SpeedConfig {
         };
         let (wb, ib) = (base.omega_e_rad_s, base.current_a);
         // Per-unit: i_q/I_b = K (ω/ω_b) ω_b/I_b.
+        // The negation of a representable non-negative value is representable, and so is a
+        // share of it (b ≤ 1; rounded toward zero).
+        let neg_kp = Coef::new(
+            -coef_in::<KP_FRAC>("speed.kp", kp * wb / ib, (0.0, f64::MAX), true, ib / wb)?.to_f64(),
+        )
+        .unwrap_or(Coef::ZERO);
         Ok(Self {
             ki_t: coef_in(
                 "speed.ki",
@@ -213,12 +226,8 @@ impl SpeedConfig {
                 true,
                 ib / (t * wb),
             )?,
-            // The negation of a representable non-negative value is representable.
-            neg_kp: Coef::new(
-                -coef_in::<KP_FRAC>("speed.kp", kp * wb / ib, (0.0, f64::MAX), true, ib / wb)?
-                    .to_f64(),
-            )
-            .unwrap_or(Coef::ZERO),
+            neg_kp,
+            neg_kp_ref: Coef::from_bits((f64::from(neg_kp.bits()) * b) as i32),
             i_max: pu_from_f64(i_max_a / ib),
             gains_si: (ki, kp),
             design,
@@ -230,6 +239,11 @@ impl SpeedConfig {
     /// `K_pΩ ω_b/I_b` as stored (per unit; for f64 models of the fixed-point loop).
     pub fn kp_pu(&self) -> f64 {
         -self.neg_kp.to_f64()
+    }
+
+    /// `b K_pΩ ω_b/I_b` as stored: the reference's part of the proportional action.
+    pub fn kp_ref_pu(&self) -> f64 {
+        -self.neg_kp_ref.to_f64()
     }
 
     /// `K_iΩ T ω_b/I_b` as stored (per unit).
@@ -293,20 +307,20 @@ impl SpeedController {
         self.s = (iq.max(-c.i_max).min(c.i_max).to_bits() as i64) << S_SHIFT;
     }
 
-    /// The reference moved from `from` to `to` (the PI form; nothing in the IP form): adds
-    /// `K_pΩ (to − from)` to the output, clamped to the limit, as a step at the reference's
-    /// change would. The step itself stays the IP's, so the PI form costs the control path
-    /// nothing: its reference part acts where the reference is set.
+    /// The reference moved from `from` to `to`: adds `b K_pΩ (to − from)` to the output
+    /// ([`SpeedDesign::reference_weight`]; nothing in the IP form), clamped to the limit, as a
+    /// step at the reference's change would. The step itself stays the IP's, so the
+    /// reference's part costs the control path nothing: it acts where the reference is set.
     pub fn move_reference(&mut self, from: Pu, to: Pu) {
         let c = &self.config;
-        if c.design.proportional == Proportional::OnSpeed {
+        if c.neg_kp_ref == Coef::ZERO {
             return;
         }
-        // −K_pΩ (from − to) exact (LSB 2⁻⁴¹, |·| < 2⁶²), added to the state at that LSB
+        // −b K_pΩ (from − to) exact (LSB 2⁻⁴¹, |·| < 2⁶²), added to the state at that LSB
         // and its 15 lower bits kept: a reference moved in many small steps adds up to its
         // whole move (a kick rounded at every step would drift by up to ½ LSB each).
         const LOW: u32 = S_SHIFT - KP_FRAC;
-        let kick = c.neg_kp.wide(from.saturating_sub(to).to_bits());
+        let kick = c.neg_kp_ref.wide(from.saturating_sub(to).to_bits());
         let sum = (self.s >> LOW) + kick;
         let limit = (self.limit.to_bits() as i64) << KP_FRAC;
         self.s = if sum >= limit {

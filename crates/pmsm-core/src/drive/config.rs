@@ -5,6 +5,7 @@ use crate::Angle;
 use crate::control::current::{CurrentConfig, CurrentDesign};
 use crate::control::flux::{FluxConfig, FluxDesign};
 use crate::control::light_load::LightLoadConfig;
+use crate::control::low_speed::LowSpeedConfig;
 use crate::control::speed::{SpeedConfig, SpeedDesign};
 use crate::deadtime::{DeadTimeConfig, DeadTimeDesign, DeadTimeMode};
 use crate::error::ConfigError;
@@ -88,9 +89,7 @@ impl OpenLoopDesign {
     /// that current makes, `0.2 p K_T I / J`; handover at 10 % of the rated electrical speed
     /// (or of the base speed); alignment over 0.5 s.
     pub fn default_for(motor: &MotorParams, base: &PerUnit) -> Self {
-        let rated_e = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
-            n * core::f64::consts::TAU / 60.0 * motor.p()
-        });
+        let rated_e = rated_e_rad_s(motor, base);
         Self {
             current_a: base.current_a,
             accel_rad_s2: 0.2 * motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2,
@@ -98,6 +97,40 @@ impl OpenLoopDesign {
             align_time_s: 0.5,
         }
     }
+}
+
+/// The light-load and the low-speed d-axis currents' configurations (both updated every
+/// eighth sample, `Drive::speed_loop`).
+#[inline(always)]
+fn d_axis_currents(
+    design: &DriveDesign,
+    base: &PerUnit,
+    flux_wb: f64,
+    v_dead_v: f64,
+) -> Result<(LightLoadConfig, LowSpeedConfig), ConfigError> {
+    let limit_a = design.speed.current_limit_a;
+    Ok((
+        LightLoadConfig::new(
+            design.light_load_id_a,
+            LightLoadConfig::default_fade_rad_s(flux_wb, v_dead_v),
+            crate::control::LIGHT_LOAD_RAISED_PER_LIMIT * limit_a,
+            base,
+            8,
+        )?,
+        LowSpeedConfig::new(
+            design.low_speed_id_a,
+            design.low_speed_fade_rad_s,
+            pu_from_f64(limit_a / base.current_a),
+            base,
+        )?,
+    ))
+}
+
+/// The rated electrical speed, rad/s (the base speed for a motor without a rating).
+fn rated_e_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
+    motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
+        n * core::f64::consts::TAU / 60.0 * motor.p()
+    })
 }
 
 /// Default [`Protection::health_limit_pu`]: 1.0 pu, about five times the largest steady-state
@@ -198,6 +231,17 @@ pub struct DriveDesign {
     /// the back-EMF estimators and for an inverter without dead
     /// time.
     pub light_load_id_a: f64,
+    /// The positive d-axis current held at low speed in the closed loop, A peak, faded out at
+    /// [`DriveDesign::low_speed_fade_rad_s`] (docs/drive.md, "low-speed current";
+    /// [`LowSpeedConfig`]); 0 turns it off. Default [`LowSpeedConfig::default_current_a`]: the
+    /// speed loop's current limit, at most `ψ/(2 (L_q − L_d))` on a salient motor, for the
+    /// current-model MRAS; 0 for the back-EMF estimators, which pass through zero speed in
+    /// their open loop.
+    pub low_speed_id_a: f64,
+    /// Electrical speed where the low-speed current has faded out, rad/s. Default
+    /// [`LowSpeedConfig::default_fade_rad_s`]: a fifth of the rated speed (twice the
+    /// back-EMF estimators' handover speed).
+    pub low_speed_fade_rad_s: f64,
     /// Measure the inverter's distortion voltage at standstill, between the rotor's angle
     /// found (detection or alignment) and the run, and scale the dead-time compensation to it
     /// (docs/drive.md, "dead-time calibration"; 40 ms); it runs only when the compensation acts
@@ -226,9 +270,15 @@ impl DriveDesign {
             speed: {
                 // A back-EMF estimator's speed carries the ripple of every voltage error the
                 // dead time leaves (6th harmonic): its loop gets 40 % of the default bandwidth.
+                // The current-model MRAS's weighs the reference by a half in the proportional
+                // action: a ramp followed with half the IP's lag (a load that changes with the
+                // reference finds the rotor where it should be) and a fraction of the PI's
+                // overshoot at its end (docs/drive.md, "speed loop: the reference's weight").
                 let mut d = speed;
                 if estimator.needs_open_loop_start() {
                     d.bandwidth_rad_s *= 0.4;
+                } else {
+                    d.reference_weight = MRAS_REFERENCE_WEIGHT;
                 }
                 d
             },
@@ -264,9 +314,24 @@ impl DriveDesign {
                     inverter.dead_time_s,
                 )
             },
+            // The back-EMF estimators pass through zero speed in their open loop's current
+            // vector, the same spring; in their closed loop, above the handover speed, the
+            // current changed nothing measurable on the random family.
+            low_speed_id_a: if estimator.needs_open_loop_start() {
+                0.0
+            } else {
+                LowSpeedConfig::default_current_a(motor, speed.current_limit_a)
+            },
+            low_speed_fade_rad_s: LowSpeedConfig::default_fade_rad_s(rated_e_rad_s(motor, base)),
         }
     }
 }
+
+/// [`SpeedDesign::reference_weight`] of the drive's default speed loop with the current-model
+/// MRAS (docs/drive.md, "speed loop: the reference's weight"); the back-EMF estimators keep the
+/// IP form ([`crate::IP_FORM`]), whose reference is held at their least speed and whose rotor
+/// must decelerate into the open-loop reversal.
+pub const MRAS_REFERENCE_WEIGHT: f64 = 0.5;
 
 /// The few choices a user makes about a drive; everything else is
 /// [`DriveDesign::default_for`]'s (for more, change a [`DriveDesign`] and use
@@ -338,6 +403,8 @@ pub struct DriveConfig {
     pub(crate) mid_frame_k: i32,
     /// The light-load d-axis current ([`DriveDesign::light_load_id_a`]).
     pub(crate) light_load: LightLoadConfig,
+    /// The low-speed d-axis current ([`DriveDesign::low_speed_id_a`]).
+    pub(crate) low_speed: LowSpeedConfig,
     /// The dead-time calibration at the alignment's end ([`DriveDesign::deadtime_calibration`]).
     pub(crate) calibration: super::calibrate::CalibrationConfig,
     /// Declared last: declared before the fields above, its growth by two words moved them
@@ -371,7 +438,9 @@ pub(crate) struct ProtectionConfig {
 
 impl DriveConfig {
     /// The drive for `motor` on `inverter` sampled at `sample_hz`, with every default of
-    /// [`DriveDesign::default_for`] but the choices of `options`.
+    /// [`DriveDesign::default_for`] but the choices of `options`. Inlined, as
+    /// [`DriveConfig::new`].
+    #[inline(always)]
     pub fn from_params(
         motor: &MotorParams,
         inverter: &InverterParams,
@@ -394,7 +463,10 @@ impl DriveConfig {
     }
 
     /// Computes and checks every coefficient of `design` for `motor` on `inverter` at
-    /// `sample_hz`.
+    /// `sample_hz`. Inlined (the board firmware calls it once with its motor's constants, which
+    /// then fold: out of line it costs 7 KB more flash than the 64 KiB image holds); a caller
+    /// that builds drives in several places wraps it once.
+    #[inline(always)]
     pub fn new(
         motor: &MotorParams,
         inverter: &InverterParams,
@@ -421,7 +493,9 @@ impl DriveConfig {
             #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             EstimatorKind::Nlo => EstimatorConfig::Nlo(NloConfig::new(motor, &base, g)?),
             #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
-            EstimatorKind::Ao => EstimatorConfig::Ao(AoConfig::new(motor, &base, g)?),
+            EstimatorKind::Ao => {
+                EstimatorConfig::Ao(AoConfig::new(motor, &base, g)?.lag_compensated(&base)?)
+            }
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             EstimatorKind::MrasEmf => {
                 EstimatorConfig::MrasEmf(MrasEmfConfig::default_for(motor, &base, g)?)
@@ -481,6 +555,8 @@ impl DriveConfig {
         )?;
         positive("protection.vdc_min_v", p.vdc_min_v)?;
         in_range("protection.vdc_max_v", p.vdc_max_v, p.vdc_min_v, 1e4)?;
+        let (light_load, low_speed) =
+            d_axis_currents(&design, &base, motor.flux_wb, deadtime.v_dead_nominal_v)?;
         Ok(Self {
             estimator,
             current: CurrentConfig::new(motor, &base, {
@@ -568,14 +644,8 @@ impl DriveConfig {
             } else {
                 super::calibrate::CalibrationConfig::default()
             },
-            // Updated every eighth sample (`Drive::speed_loop`).
-            light_load: LightLoadConfig::new(
-                design.light_load_id_a,
-                LightLoadConfig::default_fade_rad_s(motor.flux_wb, deadtime.v_dead_nominal_v),
-                crate::control::LIGHT_LOAD_RAISED_PER_LIMIT * design.speed.current_limit_a,
-                &base,
-                8,
-            )?,
+            light_load,
+            low_speed,
             rectify_grace_samples: libm::ceil(super::RECTIFY_GRACE_S / ts) as u32,
             pwm_delay: design.pwm_delay_samples,
             mid_turns: 2 * design.pwm_delay_samples as i32 + 1,

@@ -91,6 +91,10 @@ pub struct Drive {
     flux: FluxController,
     /// The light-load d-axis current.
     light_load: LightLoad,
+    /// The low-speed d-axis current's reference (`control/low_speed.rs`), and its faded level
+    /// before the current limit (taken on another slot).
+    low_speed_id: Pu,
+    low_speed_faded: Pu,
     /// The dead-time calibration's progress.
     calibration: calibrate::Calibration,
     /// The compensation's `V_dead` against the configured one, Q4.28 (the calibration's).
@@ -135,6 +139,8 @@ impl Drive {
                 f
             },
             light_load: LightLoad::default(),
+            low_speed_id: Pu::ZERO,
+            low_speed_faded: Pu::ZERO,
             calibration: calibrate::Calibration::default(),
             deadtime_scale: calibrate::SCALE_ONE,
             slot: 0,
@@ -287,6 +293,8 @@ impl Drive {
         self.flux.reset(&self.config.flux);
         self.light_load
             .reset(&self.config.light_load, Pu::ZERO, Pu::ZERO);
+        self.low_speed_faded = self.config.low_speed.faded(Pu::ZERO);
+        self.low_speed_id = self.config.low_speed.id_ref(Pu::ZERO, Pu::ZERO);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
         self.iq_ref = Pu::ZERO;
         // The first sample of the closed loop is slot 0: it runs the speed loop. The speed
@@ -570,6 +578,8 @@ impl Drive {
             self.flux.reset(&self.config.flux);
             self.light_load
                 .reset(&self.config.light_load, iq, estimate.omega);
+            self.low_speed_faded = self.config.low_speed.faded(estimate.omega);
+            self.low_speed_id = self.config.low_speed.id_ref(iq, estimate.omega);
             self.slot = LAST_SLOT;
             self.state = DriveState::Run;
         }
@@ -626,13 +636,21 @@ impl Drive {
         if self.slot & c.speed_mask == 0 {
             self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         }
-        // The light-load d current follows |i_q*| slowly (every eighth sample, on the slot the
-        // monitor leaves free).
-        if self.slot == 7 {
-            self.light_load
-                .update(&c.light_load, self.iq_ref, self.speed_filtered);
+        // Every eighth sample: the light-load d current follows |i_q*| slowly and the
+        // low-speed current fades with the speed (slot 7, beside the monitor's tracking
+        // check); the low-speed current is held within the current limit on slot 3 (beside the
+        // health figure, and with MTPA and field weakening the field-weakening integrator).
+        if self.slot & 3 == 3 {
+            if self.slot == 7 {
+                self.light_load
+                    .update(&c.light_load, self.iq_ref, self.speed_filtered);
+                self.low_speed_faded = c.low_speed.faded(self.speed_filtered);
+            } else {
+                self.low_speed_id = c.low_speed.within_limit(self.low_speed_faded, self.iq_ref);
+            }
         }
         let light = self.light_load.id_ref();
+        let low = self.low_speed_id;
         // The speed loop's limit is the current circle's `|i_q|` room: `i_q*` needs no clamp.
         let i_ref = if c.flux.enabled() {
             if self.slot & 1 != 0
@@ -649,14 +667,18 @@ impl Drive {
                 self.speed.set_limit(iq_max);
                 self.iq_ref = self.iq_ref.min(iq_max).max(iq_max.saturating_neg());
             }
-            // The more negative of the two d references.
+            // The more negative of the two d references, and the low-speed current (each
+            // within ±64 pu: the sum cannot wrap).
             Dq {
-                d: self.flux.id_ref().min(light),
+                d: Pu::from_bits(self.flux.id_ref().min(light).to_bits() + low.to_bits()),
                 q: self.iq_ref,
             }
         } else {
+            // The light-load current (≤ 0, faded in from standstill, within 10 pu) and the
+            // low-speed one (≥ 0, faded out from standstill, within 64 pu): at low speed the
+            // second dominates; the sum cannot wrap.
             Dq {
-                d: light,
+                d: Pu::from_bits(light.to_bits() + low.to_bits()),
                 q: self.iq_ref,
             }
         };

@@ -162,13 +162,23 @@ impl TrackerDesign {
     /// its current band (or everywhere, without compensation); learning where it exceeds 10 %
     /// of the EMF. (Without the gate, 31 of the 200 healthy scenarios of `cargo xtask sweep`
     /// lost the lock with tracking on: the start's light-load ramps taught the filter the
-    /// dead-time residue as a resistance and a flux.)
+    /// dead-time residue as a resistance and a flux.) Nor below the speed where the drive's
+    /// low-speed d current has faded out (docs/drive.md, "low-speed current"): that current
+    /// saturates the d axis, which the model does not know, and motor B's start with ψ 20 %
+    /// high in the model taught the filter an `R̂` 22 % high there and lost its lock.
     pub fn for_drive(config: &DriveConfig) -> Self {
         let dt = config.deadtime();
+        let default = Self::default_for(&config.base);
+        let low_speed = if config.design.low_speed_id_a > 0.0 {
+            config.design.low_speed_fade_rad_s
+        } else {
+            0.0
+        };
         Self {
             inverter_error_v: dt.v_dead_nominal_v,
             current_band_a: config.deadtime_compensation().then_some(dt.design.band_a),
-            ..Self::default_for(&config.base)
+            min_speed_rad_s: default.min_speed_rad_s.max(low_speed),
+            ..default
         }
     }
 }

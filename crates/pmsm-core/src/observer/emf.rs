@@ -123,13 +123,14 @@ impl EmfToRotor {
     /// from `direction` (updated here), `θ̂ = ∠ê ∓ 90°`.
     #[inline(always)]
     pub(crate) fn estimate(&self, emf: AlphaBeta, p: Polar, direction: &mut Direction) -> Estimate {
+        let speed = self.inv_psi.apply(p.magnitude);
         let forward = direction.update(
             &self.direction,
             p.angle,
             self.has_angle(&p),
             p.magnitude < self.flip_emf,
+            speed,
         );
-        let speed = self.inv_psi.apply(p.magnitude);
         Estimate {
             theta: rotor_angle_from_emf(p.angle, forward),
             omega: if forward {

@@ -10,9 +10,29 @@
 //! ```
 //!
 //! The constants are the paper's, in SI electrical units (`c1 = 0.0347`, `c2 = 5208`,
-//! `c3 = 0.1`; [`MrasEmfConfig::default_for`] raises `c3` where the sample rate is too slow
-//! for it, docs/solsona2000.md §5); in per unit `ω̂_Ad = ψ_b² (c1 ε + (c2/ω_b) ω_b∫ε dt) / ω̂_AO` with
+//! `c3 = 0.1`); in per unit `ω̂_Ad = ψ_b² (c1 ε + (c2/ω_b) ω_b∫ε dt) / ω̂_AO` with
 //! `ψ_b = V_b/ω_b`, which keeps the paper's behaviour for any base.
+//!
+//! # The drive's defaults
+//!
+//! The paper's constants suit the paper's motor only. With `E = ψ|ω|`, `ε ≈ E² Δ` for the
+//! model's phase `Δ` behind `ê_AO`, and eq. 27–29 linearise to
+//! `s² + |ω| (ψ² c1 + 1/c3) s + ψ² c2 |ω|` (in `Δ`, driven by the speed error), whose slow root
+//! is `ψ² c2 c3` while the pull dominates the damping: 43 rad/s on motor A (ψ = 0.288 Wb), but
+//! 0.1 rad/s on a 48 V motor with ψ = 0.014 Wb, whose adapted speed then does not move in a
+//! whole open-loop start. [`MrasEmfConfig::default_for`] therefore designs `c2` for a slow root
+//! of [`crate::MRAS_EMF_ADAPTATION_BANDWIDTH_TS`]`/T_s` (five times the speed loop's bandwidth, which a slower
+//! estimate destabilised: the speed swung and the estimate ran away to overspeed after the
+//! handover), keeps the paper's `c1/c2`, raises `c3` where the sample rate is too slow for it
+//! (docs/solsona2000.md §5), and runs the AO with its lag compensated
+//! ([`AoConfig::lag_compensated`]), whose turn it adds to the model's angle: at constant speed
+//! the model is aligned with `ê_AO` and carries the same lag.
+//!
+//! While the drive's open loop holds the direction ([`Estimator::hold_direction`]) the
+//! estimate's speed is the AO's, signed by the held direction, and the model turns at it; at
+//! the release the integral takes the value that gives that speed at zero error, so the
+//! adaptation starts from a speed measured from the EMF instead of from rest (where its slow
+//! root would leave it at the handover).
 //!
 //! Discretisation: the rotation of `ẽ` is exact (as in the NLO), the pull uses the pole
 //! `1 − exp(−ω̂_AO T_s/c3)` (third-order series, exact to 1e−3 at the largest accepted step),
@@ -35,11 +55,25 @@ use crate::units::PerUnit;
 pub const PAPER_CONSTANTS: [f64; 3] = [0.0347, 5208.0, 0.1];
 /// Smallest `ω̂_AO` used in the adaptation law, per unit.
 pub const MIN_SPEED_PU: f64 = 0.005;
+/// The slow root of the drive's adaptation, `ψ² c2 c3`, times `T_s`
+/// ([`MrasEmfConfig::default_for`]): five times the back-EMF estimators' speed-loop bandwidth
+/// (`0.002/T_s`), 200 rad/s at 20 kHz (the paper's constants give 43 rad/s on its motor and
+/// 0.1 rad/s on a 48 V motor of a hundredth of its flux).
+pub const ADAPTATION_BANDWIDTH_TS: f64 = 0.01;
 
 /// Configuration of the [`MrasEmf`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MrasEmfConfig {
     ao: AoConfig,
+    law: Law,
+    /// `c1, c2, c3` as configured.
+    pub constants: [f64; 3],
+}
+
+/// The adaptation law's coefficients (the estimator keeps these, its AO its own
+/// configuration: no second copy of the AO's in the state).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Law {
     /// `ω_b T_s / c3`: pull rate per unit of speed.
     pull: Gain,
     /// Rotation per sample, angle LSB per LSB of per-unit speed.
@@ -50,9 +84,10 @@ pub struct MrasEmfConfig {
     k2: Gain,
     /// `ω_b T_s`: integral increment per unit of ε.
     k_int: Gain,
+    /// `1/k2`: the integral that gives a speed at zero error, per unit of `ω̂ |ω̂_AO|`
+    /// (zero with `c2 = 0`).
+    inv_k2: Gain,
     min_speed: Pu,
-    /// `c1, c2, c3` as configured.
-    pub constants: [f64; 3],
 }
 
 impl MrasEmfConfig {
@@ -65,18 +100,30 @@ impl MrasEmfConfig {
         Self::new(motor, base, ao_gain_rad_s, PAPER_CONSTANTS)
     }
 
-    /// MRAS with the paper's constants, but `c3` at least `ω_b T_s` (a pull of one sample's
-    /// worth per sample at base speed): the paper's 0.1 is below the stable least `ω_b T_s/2`
-    /// for a fast motor at a slow PWM (a 320 V, 5459 r/min, 3-pole-pair motor at 13 kHz
-    /// needs 0.103), and doubling the bound keeps the pull's series accurate.
+    /// The drive's MRAS (module docs, "the drive's defaults"): `c3` the paper's but at least
+    /// `ω_b T_s` (a pull of one sample's worth per sample at base speed: the paper's 0.1 is
+    /// below the stable least `ω_b T_s/2` for a fast motor at a slow PWM, a 320 V, 5459 r/min,
+    /// 3-pole-pair motor at 13 kHz needs 0.103, and doubling the bound keeps the pull's series
+    /// accurate); `c2` such that the adaptation's slow root `ψ² c2 c3` is
+    /// [`crate::MRAS_EMF_ADAPTATION_BANDWIDTH_TS`]`/T_s`; `c1` in the paper's ratio to `c2`; the AO
+    /// lag-compensated.
     pub fn default_for(
         motor: &MotorParams,
         base: &PerUnit,
         ao_gain_rad_s: f64,
     ) -> Result<Self, ConfigError> {
         let [c1, c2, c3] = PAPER_CONSTANTS;
+        let psi = crate::params::positive("flux_wb", motor.flux_wb)?;
         let c3 = c3.max(base.omega_e_rad_s * base.sample_s);
-        Self::new(motor, base, ao_gain_rad_s, [c1, c2, c3])
+        let c2_motor = ADAPTATION_BANDWIDTH_TS / base.sample_s / (psi * psi * c3);
+        let mut c = Self::new(
+            motor,
+            base,
+            ao_gain_rad_s,
+            [c1 / c2 * c2_motor, c2_motor, c3],
+        )?;
+        c.ao = c.ao.lag_compensated(base)?;
+        Ok(c)
     }
 
     /// MRAS with constants `[c1, c2, c3]` (SI, electrical) on an AO of gain `ao_gain_rad_s`.
@@ -100,13 +147,12 @@ impl MrasEmfConfig {
                 })
             }
         };
-        check("c1", c1, 1e-9, 1e9)?;
-        check("c2", c2, 0.0, 1e9)?;
+        check("c1", c1, 1e-12, 1e15)?;
+        check("c2", c2, 0.0, 1e15)?;
         // The pull must stay below 2 per sample at base speed (its series and stability).
         check("c3", c3, 0.5 * wb * ts, 1e9)?;
         let psi2 = base.flux_wb * base.flux_wb;
-        Ok(Self {
-            ao: AoConfig::new(motor, base, ao_gain_rad_s)?,
+        let law = Law {
             pull: gain("c3", wb * ts / c3)?,
             step: gain(
                 "sample_hz",
@@ -119,7 +165,16 @@ impl MrasEmfConfig {
                 gain("c2", psi2 * c2 / wb)?
             },
             k_int: gain("sample_hz", wb * ts)?,
+            inv_k2: if c2 == 0.0 {
+                Gain::ZERO
+            } else {
+                gain("c2", wb / (psi2 * c2))?
+            },
             min_speed: pu_from_f64(MIN_SPEED_PU),
+        };
+        Ok(Self {
+            ao: AoConfig::new(motor, base, ao_gain_rad_s)?,
+            law,
             constants: [c1, c2, c3],
         })
     }
@@ -128,13 +183,16 @@ impl MrasEmfConfig {
 /// The MRAS estimator (configuration and state).
 #[derive(Clone, Copy, Debug)]
 pub struct MrasEmf {
-    config: MrasEmfConfig,
+    law: Law,
     ao: Ao,
     model: AlphaBeta,
     integral: Pu,
     last: Estimate,
     /// `| |ẽ| − ψ |ω̂| |`: the adjustable model's EMF against the adapted speed.
     consistency: Pu,
+    /// From a reset or a held direction to the release: the estimate's speed is the AO's
+    /// (module docs).
+    following: bool,
 }
 
 impl MrasEmf {
@@ -142,12 +200,20 @@ impl MrasEmf {
     pub fn new(config: MrasEmfConfig) -> Self {
         Self {
             ao: Ao::new(config.ao),
-            config,
+            law: config.law,
             model: AlphaBeta::default(),
             integral: Pu::ZERO,
             last: Estimate::default(),
             consistency: Pu::ZERO,
+            following: false,
         }
+    }
+
+    /// The integral that gives the speed `omega` at zero error with the AO at `speed_ao`:
+    /// `ω̂ = k2 ∫ / ω̂_AO` solved for `∫`.
+    fn integral_for(&self, omega: Pu, speed_ao: Pu) -> Pu {
+        let c = &self.law;
+        c.inv_k2.apply(mul(omega, speed_ao.max(c.min_speed)))
     }
 
     /// The AO that feeds the adaptation.
@@ -166,7 +232,7 @@ fn pull_fraction(x: Pu) -> Pu {
 
 impl Estimator for MrasEmf {
     fn update(&mut self, input: &ObserverInput) -> Estimate {
-        let c = &self.config;
+        let c = &self.law;
         let ao = self.ao.update(input);
         let reference = ao.emf;
         let speed_ao = ao.omega.saturating_abs().max(c.min_speed);
@@ -182,23 +248,43 @@ impl Estimator for MrasEmf {
         self.integral = self.integral.saturating_add(c.k_int.apply(eps));
         // ω̂_Ad = (k1 ε + k2 ∫) / ω̂_AO (Solsona, Valla, Muravchik (2000) eq. 29).
         let num = c.k1.apply(eps).saturating_add(c.k2.apply(self.integral));
-        let omega = Pu::from_bits(sat_i32(
+        let adapted = Pu::from_bits(sat_i32(
             // speed_ao ≥ MIN_SPEED_PU > 0; checked so that no panic path is linked.
             ((num.to_bits() as i64) << 24)
                 .checked_div(speed_ao.to_bits() as i64)
                 .unwrap_or(0),
         ));
+        // In the drive's open loop: the AO's speed (in the direction its AO holds).
+        let omega = if self.following { ao.omega } else { adapted };
         let p = polar(self.model.alpha, self.model.beta);
         self.consistency = p
             .magnitude
-            .saturating_sub(mul(c.ao.psi(), omega.saturating_abs()))
+            .saturating_sub(mul(self.ao.config().psi(), omega.saturating_abs()))
             .saturating_abs();
+        // The AO's lag compensation turns the model's angle as it turns the AO's: by its
+        // magnitude, in this estimate's sense of rotation.
+        let turn = self.ao.lag();
+        let lag = if (ao.omega >= Pu::ZERO) == (omega >= Pu::ZERO) {
+            turn
+        } else {
+            Angle::ZERO - turn
+        };
         self.last = Estimate {
-            theta: rotor_angle_from_emf(p.angle, omega >= Pu::ZERO),
+            theta: rotor_angle_from_emf(p.angle, omega >= Pu::ZERO) + lag,
             omega,
             emf: self.model,
         };
         self.last
+    }
+
+    fn hold_direction(&mut self, forward: Option<bool>) {
+        if self.following && forward.is_none() {
+            // Released: the adaptation continues from the speed the estimate carries.
+            let speed_ao = self.ao.estimate().omega.saturating_abs();
+            self.integral = self.integral_for(self.last.omega, speed_ao);
+        }
+        self.following = forward.is_some();
+        self.ao.hold_direction(forward);
     }
 
     fn estimate(&self) -> Estimate {
@@ -213,15 +299,9 @@ impl Estimator for MrasEmf {
         self.ao.reset(theta, omega);
         self.model = self.ao.estimate().emf;
         // The integral carries the speed at zero error: ω̂ = k2 ∫ / ω̂_AO.
-        let speed_ao = omega.saturating_abs().max(self.config.min_speed);
-        let k2 = self.config.k2.to_f64();
-        let integral = if k2 > 0.0 {
-            crate::units::to_f64(omega) * crate::units::to_f64(speed_ao) / k2
-        } else {
-            0.0
-        };
-        self.integral = pu_from_f64(integral);
+        self.integral = self.integral_for(omega, omega.saturating_abs());
         self.consistency = Pu::ZERO;
+        self.following = true;
         self.last = Estimate {
             theta,
             omega,

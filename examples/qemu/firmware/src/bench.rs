@@ -23,7 +23,7 @@ use pmsm_core::{
 };
 use pmsm_core::{DeadTimeConfig, DeadTimeDesign};
 use pmsm_core::{
-    Drive, DriveConfig, DriveInput, DriveOutput, EstimatorKind, FluxConfig, FluxController,
+    Drive, DriveInput, DriveOutput, EstimatorKind, FluxConfig, FluxController,
     FluxDesign, StartupMode,
 };
 use pmsm_core::{Identify, IdentifyConfig, IdentifyDesign, IdentifyOutput};
@@ -34,7 +34,7 @@ use pmsm_core::{clarke, inverse_clarke, inverse_park, park};
 use pmsm_core::{mul, mul_unit, pu_from_f64};
 use pmsm_pil::cases::{self, Case, DRIVE_STATE_WORD, DriveCase, STATE_RUN};
 use pmsm_pil::format::{CaseData, Recording};
-use pmsm_pil::setup::{DRIVE_SAMPLE_HZ, Setup};
+use pmsm_pil::setup::Setup;
 
 use crate::meter::Meter;
 
@@ -274,7 +274,7 @@ fn drive_with_flux() -> Option<Drive> {
         .design;
     design.flux = FluxDesign::ON;
     design.speed.decimation = 2;
-    let mut d = Drive::new(DriveConfig::new(&b.motor, &b.inverter, DRIVE_SAMPLE_HZ, design).ok()?);
+    let mut d = Drive::new(b.config(design).ok()?);
     d.start();
     Some(d)
 }

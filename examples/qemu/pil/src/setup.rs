@@ -128,6 +128,13 @@ impl Setup {
         // is the plant's, so it changes nothing) is left out: the recording, which the
         // micro:bit's flash holds no longer, keeps its closed-loop steps.
         design.deadtime_calibration = false;
+        self.config(design)
+    }
+
+    /// `DriveConfig::new` for this motor and inverter at [`DRIVE_SAMPLE_HZ`]: its one call in
+    /// the firmware (it is inlined where it is called; the micro:bit's flash holds one copy).
+    #[inline(never)]
+    pub fn config(&self, design: DriveDesign) -> Result<DriveConfig, ConfigError> {
         DriveConfig::new(&self.motor, &self.inverter, DRIVE_SAMPLE_HZ, design)
     }
 }

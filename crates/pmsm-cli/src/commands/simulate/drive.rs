@@ -7,7 +7,7 @@ use pmsm_core::DeadTimeMode;
 use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
 use pmsm_core::{DistortionDesign, DistortionLearner};
 use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode, Tracker, TrackerDesign};
-use pmsm_core::{EstimatorKind, MrasCurrentGains, Proportional};
+use pmsm_core::{EstimatorKind, IP_FORM, MrasCurrentGains, PI_FORM};
 use std::f64::consts::TAU;
 
 /// The drive of a scenario and what the loop needs to talk to it in SI units.
@@ -175,6 +175,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     if let Some(i) = c.light_load_id_a {
         design.light_load_id_a = i;
     }
+    if let Some(i) = c.low_speed_id_a {
+        design.low_speed_id_a = i;
+    }
     if let Some(g) = c.observer_gain {
         design.observer_gain_rad_s = g;
     }
@@ -185,10 +188,13 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
         design.speed.bandwidth_rad_s = TAU * hz;
     }
     if let Some(form) = c.speed_loop {
-        design.speed.proportional = match form {
-            SpeedLoopForm::Ip => Proportional::OnSpeed,
-            SpeedLoopForm::Pi => Proportional::OnError,
+        design.speed.reference_weight = match form {
+            SpeedLoopForm::Ip => IP_FORM,
+            SpeedLoopForm::Pi => PI_FORM,
         };
+    }
+    if let Some(b) = c.speed_reference_weight {
+        design.speed.reference_weight = b;
     }
     if let Some(hz) = c.mras_bandwidth_hz {
         design.mras_current = MrasCurrentGains::design(model, TAU * hz);

@@ -1,0 +1,223 @@
+//! The low-speed d-axis current (docs/drive.md, "low-speed current").
+//!
+//! Every estimator of the crate reads the rotor through its EMF, directly (the back-EMF
+//! observers) or through the currents it drives (the current-model MRAS, whose sensitivity to
+//! the position error falls as `ω²/(ω² + ω_c²)`). Near standstill the estimate therefore
+//! runs on its model alone, and a load that changes while the rotor passes through zero (a
+//! reversal under load, a load step at low speed) turns the estimated frame away from the
+//! rotor: the speed loop then pushes its current into a frame that is turning away, and the
+//! lock is lost.
+//!
+//! A positive current along the estimated d axis makes the rotor follow the estimated frame
+//! instead: with the frame `δ` behind the magnet, the magnet's torque on that current is
+//! `1.5 p ψ i_d sin δ`, a spring that pulls the rotor back towards the frame (an alignment,
+//! or the current vector of an open-loop "I–f" start, held while the closed loop runs). So
+//! the drive adds, in the closed loop,
+//!
+//! ```text
+//! i_d,LS = min(I_LS (1 − |ω̂|/ω_LS), I_max − i_q*²/I_max),   not below 0
+//! ```
+//!
+//! - `I_LS`: the rated current (the per-unit base), at most `ψ/(2 (L_q − L_d))` on a salient
+//!   motor, where the reluctance torque `1.5 p (L_d − L_q) i_d i_q` would take more than half
+//!   of the spring's stiffness `1.5 p (ψ − (L_q − L_d) i_d) i_d` (it turns `q`, not `d`,
+//!   towards the current) and of the torque per ampere of `i_q`.
+//! - `ω_LS`: twice the back-EMF estimators' handover speed, a fifth of the rated speed, where
+//!   every estimator sees the rotor again; the current fades linearly to it.
+//! - `I_max − i_q*²/I_max`: the current vector stays within the speed loop's circle
+//!   (`(I − x²/I)² + x² = I² − x² + x⁴/I² ≤ I²` for `|x| ≤ I`), so a loaded motor crossing
+//!   zero keeps all its torque current (without a room, strongly salient motors of the random
+//!   family stalled under load at low speed). It is the circle's room `√(I² − x²)` to within
+//!   `x⁴/(8I³)` at small `x` and half of it at `x = 0.87 I`, without its root: the exact room
+//!   cost 150 instructions on the Cortex-M4, beyond the step's budget; the linear room
+//!   `I − |x|`, cheaper still, held 7 runs fewer of the family.
+//!
+//! It costs copper: at standstill the rated current's loss. On the random family (`cargo xtask
+//! family`, seeds 1–8) it lifts the current-model MRAS from 248 to 278 runs of 320 and the NLO
+//! from 158 to 164 of 172; measured figures in docs/drive.md.
+//!
+//! Formats: currents [`Pu`] (Q8.24) of `I_b`; speeds in units of 2⁻¹² pu, as
+//! [`super::light_load`].
+
+use crate::error::ConfigError;
+use crate::num::{Coef, PU_FRAC, Pu, pu_from_f64};
+use crate::params::{MotorParams, in_range, positive};
+use crate::units::PerUnit;
+
+/// [`LowSpeedConfig::default_fade_rad_s`]: the fade's end as a fraction of the rated
+/// electrical speed.
+pub const LOW_SPEED_FADE_PER_RATED: f64 = 0.2;
+
+/// The low-speed current's configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LowSpeedConfig {
+    /// `I_LS`, [`Pu`] bits (0: off).
+    current: i32,
+    /// `ω_LS`, [`Pu`] bits, at least 2¹² (2⁻¹² pu).
+    fade: i32,
+    /// `I_LS/ω_LS` in [`Pu`] bits of current per 2⁻¹² pu of speed: `k (min(|ω|, ω_LS) ≫ 12)`
+    /// is at most `I_LS` (< 2²⁸ bits), a 32-bit product.
+    per_speed: i32,
+    /// The speed loop's current limit `I_max`, [`Pu`] bits.
+    limit: i32,
+    /// `1/I_max` per unit, rounded up (the room then errs inside the circle).
+    inv_limit: Coef<16>,
+}
+
+impl LowSpeedConfig {
+    /// Off.
+    pub const OFF: Self = Self {
+        current: 0,
+        fade: 1 << 12,
+        per_speed: 0,
+        limit: 0,
+        inv_limit: Coef::ZERO,
+    };
+
+    /// `I_LS = current_a` (A peak; 0 turns it off), faded out at the electrical speed
+    /// `fade_rad_s`, within the speed loop's current limit `limit` (per unit, as the speed
+    /// loop holds it: at least 2⁻¹⁴ pu is taken), in the bases `base`.
+    ///
+    /// Errors: [`ConfigError::Param`] for `low_speed_id_a` outside `[0, 10 I_b]` or a
+    /// `low_speed_fade_rad_s` that is not positive. (Beyond the limit the current is the room
+    /// the limit leaves, as for any `i_q*`.)
+    pub fn new(
+        current_a: f64,
+        fade_rad_s: f64,
+        limit: Pu,
+        base: &PerUnit,
+    ) -> Result<Self, ConfigError> {
+        let i = in_range("low_speed_id_a", current_a, 0.0, 10.0 * base.current_a)?;
+        let fade = positive("low_speed_fade_rad_s", fade_rad_s)?;
+        if i == 0.0 {
+            return Ok(Self::OFF);
+        }
+        let current = pu_from_f64(i / base.current_a).to_bits();
+        // ω_LS in units of 2⁻¹² pu, at least one; I_LS/ω_LS rounded down (the current then
+        // reaches zero a fraction of a unit beyond ω_LS, within `max(0)`).
+        let fade_units = ((fade / base.omega_e_rad_s * 4096.0) as i32).max(1);
+        // 1/I_max in Q16 rounded up (below 2³⁰ with I_max ≥ 2⁻¹⁴ pu).
+        let limit = limit.to_bits().max(1 << 10);
+        Ok(Self {
+            current,
+            fade: fade_units.saturating_mul(1 << 12),
+            per_speed: current / fade_units,
+            limit,
+            inv_limit: Coef::from_bits(libm::ceil(1_099_511_627_776.0 / f64::from(limit)) as i32),
+        })
+    }
+
+    /// `I_LS`, per unit (zero: off).
+    pub fn current(&self) -> Pu {
+        Pu::from_bits(self.current)
+    }
+
+    /// The default `I_LS`, A: the current limit `limit_a`, at most `ψ/(2 (L_q − L_d))` on a
+    /// salient motor (module docs).
+    pub fn default_current_a(motor: &MotorParams, limit_a: f64) -> f64 {
+        let saliency = motor.lq_h - motor.ld_h;
+        if saliency > 0.0 {
+            limit_a.min(0.5 * motor.flux_wb / saliency)
+        } else {
+            limit_a
+        }
+    }
+
+    /// The default `ω_LS`, electrical rad/s: [`LOW_SPEED_FADE_PER_RATED`] of `rated_e_rad_s`.
+    pub fn default_fade_rad_s(rated_e_rad_s: f64) -> f64 {
+        LOW_SPEED_FADE_PER_RATED * rated_e_rad_s
+    }
+
+    /// The d-axis reference `i_d,LS ≥ 0` for the q reference `iq` and the speed `omega`
+    /// (module docs): [`LowSpeedConfig::within_limit`] of [`LowSpeedConfig::faded`].
+    #[inline(always)]
+    pub fn id_ref(&self, iq: Pu, omega: Pu) -> Pu {
+        self.within_limit(self.faded(omega), iq)
+    }
+
+    /// `I_LS (1 − |ω|/ω_LS)`, not below 0 (the drive takes it on one slot, the limit on
+    /// another: each fits beside that slot's other work). A shift, a comparison and a 32-bit
+    /// product.
+    #[inline(always)]
+    pub fn faded(&self, omega: Pu) -> Pu {
+        // min(|ω|, ω_LS) in units of 2⁻¹² pu times I_LS/ω_LS: at most I_LS (< 2²⁸ bits).
+        let w = (omega.to_bits().unsigned_abs().min(self.fade as u32) >> 12) as i32;
+        Pu::from_bits((self.current - w * self.per_speed).max(0))
+    }
+
+    /// `faded` within the room `I_max − i_q*²/I_max` the q reference `iq` leaves. Two 64-bit
+    /// products.
+    #[inline(always)]
+    pub fn within_limit(&self, faded: Pu, iq: Pu) -> Pu {
+        // x = |i_q*| ≤ I_max ≤ 64 pu (2³⁰ bits), 1/I_max < 2¹⁵ in Q16 (`new`): r = x/I_max in
+        // Q8.24, taken at most 1 (the rounding up of 1/I_max can lift it a hair above), and
+        // x r ≤ x. Plain 64-bit products: none can leave its format.
+        let x = iq.to_bits().unsigned_abs().min(self.limit as u32) as i64;
+        let r = ((x * i64::from(self.inv_limit.bits())) >> 16).min(1 << PU_FRAC);
+        let room = self.limit - ((x * r) >> PU_FRAC) as i32;
+        Pu::from_bits(faded.to_bits().min(room).max(0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::{inverter_b, motor_b};
+
+    /// The fixed-point law against the f64 one over speeds through the fade and q
+    /// references up to the limit, and within the current circle: within one step of the speed's 2⁻¹² pu (`I_LS` over the
+    /// fade's speed in those steps: 1.4e−3 pu on motor B) and a few LSB.
+    #[test]
+    fn low_speed_current_against_reference() {
+        let m = motor_b();
+        let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
+        let limit = base.current_a;
+        let i_ls = LowSpeedConfig::default_current_a(&m, limit);
+        // Motor B: ψ/(2 (L_q − L_d)) = 10.1 A, beyond the rated 3.58 A.
+        assert!((i_ls - limit).abs() < 1e-12, "{i_ls}");
+        let rated_e = 3000.0 * core::f64::consts::TAU / 60.0 * 3.0;
+        let fade = LowSpeedConfig::default_fade_rad_s(rated_e);
+        let lim = pu_from_f64(limit / base.current_a);
+        let c = LowSpeedConfig::new(i_ls, fade, lim, &base).unwrap();
+        let (i_pu, fade_pu, lim_pu) = (
+            i_ls / base.current_a,
+            fade / base.omega_e_rad_s,
+            limit / base.current_a,
+        );
+        let mut worst: f64 = 0.0;
+        for k in 0..=40 {
+            let omega = (k as f64 / 20.0 - 1.0) * 1.5 * fade_pu;
+            for j in 0..=20 {
+                let iq = (j as f64 / 10.0 - 1.0) * lim_pu;
+                let want = (i_pu * (1.0 - omega.abs() / fade_pu))
+                    .min(lim_pu - iq * iq / lim_pu)
+                    .max(0.0);
+                let got = c
+                    .id_ref(pu_from_f64(iq), pu_from_f64(omega))
+                    .to_num::<f64>();
+                worst = worst.max((got - want).abs());
+                // Within the current circle.
+                assert!(got * got + iq * iq <= lim_pu * lim_pu * (1.0 + 1e-6));
+            }
+        }
+        let step = i_pu / (fade_pu * 4096.0);
+        assert!(worst < step + 1e-6, "{worst} pu, step {step}");
+        assert!(step < 2e-3, "{step}");
+        // Off: nothing; out of range: named.
+        assert_eq!(LowSpeedConfig::OFF.id_ref(Pu::ZERO, Pu::ZERO), Pu::ZERO);
+        assert!(LowSpeedConfig::new(-1.0, fade, lim, &base).is_err());
+        assert!(LowSpeedConfig::new(20.0 * limit, fade, lim, &base).is_err());
+        assert!(LowSpeedConfig::new(1.0, 0.0, lim, &base).is_err());
+    }
+
+    /// A strongly salient motor: the current stops where the reluctance torque would take
+    /// half the magnet's.
+    #[test]
+    fn salient_motors_get_less() {
+        let mut m = motor_b();
+        m.lq_h = 4.0 * m.ld_h;
+        let cap = 0.5 * m.flux_wb / (m.lq_h - m.ld_h);
+        assert!((LowSpeedConfig::default_current_a(&m, 100.0) - cap).abs() < 1e-12);
+        assert!((LowSpeedConfig::default_current_a(&m, 0.5 * cap) - 0.5 * cap).abs() < 1e-12);
+    }
+}
