@@ -208,6 +208,12 @@ impl LightLoad {
     pub fn id_ref(&self) -> Pu {
         self.id_ref
     }
+
+    /// The filtered `|i_q*|`, per unit.
+    #[inline(always)]
+    pub fn level(&self) -> Pu {
+        self.level
+    }
 }
 
 #[cfg(test)]

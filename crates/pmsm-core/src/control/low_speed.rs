@@ -15,7 +15,7 @@
 //! the drive adds, in the closed loop,
 //!
 //! ```text
-//! i_d,LS = min(I_LS (1 − |ω̂|/ω_LS), I_max − i_q*²/I_max),   not below 0
+//! i_d,LS = min(I_LS (1 − |ω̂|/ω_LS), I_max − x²/I_max),   x = max(|i_q*|, |i_q*|_f),   not below 0
 //! ```
 //!
 //! - `I_LS`: the rated current (the per-unit base), at most `ψ/(2 (L_q − L_d))` on a salient
@@ -24,13 +24,19 @@
 //!   towards the current) and of the torque per ampere of `i_q`.
 //! - `ω_LS`: twice the back-EMF estimators' handover speed, a fifth of the rated speed, where
 //!   every estimator sees the rotor again; the current fades linearly to it.
-//! - `I_max − i_q*²/I_max`: the current vector stays within the speed loop's circle
+//! - `I_max − x²/I_max`: the current vector stays within the speed loop's circle
 //!   (`(I − x²/I)² + x² = I² − x² + x⁴/I² ≤ I²` for `|x| ≤ I`), so a loaded motor crossing
 //!   zero keeps all its torque current (without a room, strongly salient motors of the random
 //!   family stalled under load at low speed). It is the circle's room `√(I² − x²)` to within
 //!   `x⁴/(8I³)` at small `x` and half of it at `x = 0.87 I`, without its root: the exact room
 //!   cost 150 instructions on the Cortex-M4, beyond the step's budget; the linear room
-//!   `I − |x|`, cheaper still, held 7 runs fewer of the family.
+//!   `I − |x|`, cheaper still, held 7 runs fewer of the family. `x` is `|i_q*|` as it rises
+//!   and its 16 ms filter `|i_q*|_f` (the light-load current's, `super::light_load`) as it
+//!   falls: from `|i_q*|` alone, whose room falls steeply near the limit, the d current moved
+//!   with every ripple of the speed loop, and on a salient motor, where it takes torque, it
+//!   closed a second loop (motor B at 300 r/min and rated load swung between 239 and
+//!   291 r/min); from the filter alone, an acceleration from rest carried the vector beyond
+//!   the circle for the filter's time (1.3 `I_max` on motor B).
 //!
 //! It costs copper: at standstill the rated current's loss. On the random family (`cargo xtask
 //! family`, seeds 1–8) it lifts the current-model MRAS from 248 to 278 runs of 320 and the NLO
@@ -132,7 +138,7 @@ impl LowSpeedConfig {
     /// (module docs): [`LowSpeedConfig::within_limit`] of [`LowSpeedConfig::faded`].
     #[inline(always)]
     pub fn id_ref(&self, iq: Pu, omega: Pu) -> Pu {
-        self.within_limit(self.faded(omega), iq)
+        self.within_limit(self.faded(omega), iq, Pu::ZERO)
     }
 
     /// `I_LS (1 − |ω|/ω_LS)`, not below 0 (the drive takes it on one slot, the limit on
@@ -145,14 +151,19 @@ impl LowSpeedConfig {
         Pu::from_bits((self.current - w * self.per_speed).max(0))
     }
 
-    /// `faded` within the room `I_max − i_q*²/I_max` the q reference `iq` leaves. Two 64-bit
-    /// products.
+    /// `faded` within the room `I_max − x²/I_max` that `x = max(|iq|, level)` leaves: the q
+    /// reference `iq` as it rises, its filtered magnitude `level` (`≥ 0`) as it falls. Two
+    /// 64-bit products.
     #[inline(always)]
-    pub fn within_limit(&self, faded: Pu, iq: Pu) -> Pu {
-        // x = |i_q*| ≤ I_max ≤ 64 pu (2³⁰ bits), 1/I_max < 2¹⁵ in Q16 (`new`): r = x/I_max in
-        // Q8.24, taken at most 1 (the rounding up of 1/I_max can lift it a hair above), and
-        // x r ≤ x. Plain 64-bit products: none can leave its format.
-        let x = iq.to_bits().unsigned_abs().min(self.limit as u32) as i64;
+    pub fn within_limit(&self, faded: Pu, iq: Pu, level: Pu) -> Pu {
+        // x ≤ I_max ≤ 64 pu (2³⁰ bits), 1/I_max < 2¹⁵ in Q16 (`new`): r = x/I_max in Q8.24,
+        // taken at most 1 (the rounding up of 1/I_max can lift it a hair above), and x r ≤ x.
+        // Plain 64-bit products: none can leave its format.
+        let x = iq
+            .to_bits()
+            .unsigned_abs()
+            .max(level.to_bits() as u32)
+            .min(self.limit as u32) as i64;
         let r = ((x * i64::from(self.inv_limit.bits())) >> 16).min(1 << PU_FRAC);
         let room = self.limit - ((x * r) >> PU_FRAC) as i32;
         Pu::from_bits(faded.to_bits().min(room).max(0))

@@ -638,15 +638,20 @@ impl Drive {
         }
         // Every eighth sample: the light-load d current follows |i_q*| slowly and the
         // low-speed current fades with the speed (slot 7, beside the monitor's tracking
-        // check); the low-speed current is held within the current limit on slot 3 (beside the
-        // health figure, and with MTPA and field weakening the field-weakening integrator).
+        // check); the low-speed current is held within the current limit that the light-load
+        // filter's |i_q*| leaves on slot 3 (beside the health figure, and with MTPA and field
+        // weakening the field-weakening integrator).
         if self.slot & 3 == 3 {
             if self.slot == 7 {
                 self.light_load
                     .update(&c.light_load, self.iq_ref, self.speed_filtered);
                 self.low_speed_faded = c.low_speed.faded(self.speed_filtered);
             } else {
-                self.low_speed_id = c.low_speed.within_limit(self.low_speed_faded, self.iq_ref);
+                self.low_speed_id = c.low_speed.within_limit(
+                    self.low_speed_faded,
+                    self.iq_ref,
+                    self.light_load.level(),
+                );
             }
         }
         let light = self.light_load.id_ref();

@@ -45,26 +45,29 @@ const FRAC: u32 = 16;
 /// The coefficients of the direction tracker: the filter's shift and the flip threshold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct DirectionConfig {
-    shift: u32,
     threshold: i64,
     /// Half the angle step of one sample at 1 pu of speed, angle LSB (the flip threshold at
-    /// speed, per unit of the speed the EMF's magnitude gives).
-    half_step_per_pu: i64,
+    /// speed, per unit of the speed the EMF's magnitude gives): below 2³¹ for any accepted
+    /// sample period (`ω_b T_s` below a turn).
+    half_step_per_pu: i32,
     /// [`AT_SPEED_HOLD_S`] in samples.
     at_speed_samples: u16,
+    /// The filter's shift (1..=16). (Small fields: the configuration is in every back-EMF
+    /// estimator, and the Cortex-M0 holds several drives on its 16 KiB stack.)
+    shift: u16,
 }
 
 impl DirectionConfig {
     /// Tracker for sample period `sample_s` and base electrical speed `omega_b_rad_s`.
     pub fn new(sample_s: f64, omega_b_rad_s: f64) -> Self {
         let samples = TIME_CONSTANT_S / sample_s;
-        let shift = libm::round(libm::log2(samples)).clamp(1.0, 16.0) as u32;
+        let shift = libm::round(libm::log2(samples)).clamp(1.0, 16.0) as u16;
         let step = THRESHOLD_PU * omega_b_rad_s * sample_s / Angle::RAD_PER_LSB;
         Self {
             shift,
             threshold: (step * (1u64 << FRAC) as f64) as i64,
             half_step_per_pu: libm::round(0.5 * omega_b_rad_s * sample_s / Angle::RAD_PER_LSB)
-                as i64,
+                .min(i32::MAX as f64) as i32,
             at_speed_samples: libm::ceil(AT_SPEED_HOLD_S / sample_s).clamp(1.0, 65535.0) as u16,
         }
     }
@@ -128,7 +131,8 @@ impl Direction {
             c.threshold
         } else {
             // |speed| < 2³¹ bits, the step per unit below 2³¹ LSB: the product fits.
-            let half_step = (i64::from(speed.to_bits()).abs() * c.half_step_per_pu) >> (24 - FRAC);
+            let half_step =
+                (i64::from(speed.to_bits()).abs() * i64::from(c.half_step_per_pu)) >> (24 - FRAC);
             half_step.max(AT_SPEED_FACTOR * c.threshold)
         };
         let against = if self.forward {
@@ -219,7 +223,7 @@ mod tests {
         assert!((hold..hold + 5 * tau).contains(&k), "{k} samples");
         assert_eq!(flipped_after(&|_| -per_sample(0.04)), None);
         let noisy = |k: u32| {
-            let n = if k % 2 == 0 { 0.2 } else { -0.2 };
+            let n = if k.is_multiple_of(2) { 0.2 } else { -0.2 };
             per_sample(0.1 + n)
         };
         assert_eq!(flipped_after(&noisy), None);
