@@ -138,11 +138,37 @@ fn replay_until(
 #[test]
 fn the_detected_angle_and_the_telemetry_are_readable() {
     let rows = scenario::record();
-    // Just before the injected fault: detected, started, running at 600 r/min.
-    let (_s, d) = replay_until(&rows, FAULT_STEP);
+    // Just before the injected fault: detected, started, running at 600 r/min. The telemetry
+    // is read at every step of the last `WINDOW`, 71 ms (a few periods of the swing below).
+    const WINDOW: usize = 1000;
+    let (_s, d) = replay_until(&rows, FAULT_STEP - WINDOW);
     let mut ipd = pmsm_ipd_t::default();
     let mut t = pmsm_telemetry_t::default();
     let mut b = pmsm_bases_t::default();
+    let pu = |x: i32| x as f64 / (1 << 24) as f64;
+    // SAFETY: live handle, valid out pointer.
+    unsafe { assert_eq!(pmsm_get_bases(d, &mut b), pmsm_status_t::PMSM_OK) };
+    // Mean commanded |v| and mean steady-state model voltage at the measured currents and
+    // the estimated speed (motor B: R 7.2 ohm, L_d 25.0 mH, L_q 40.2 mH, psi 0.305 V*s).
+    let (mut v_sum, mut model_sum) = (0.0, 0.0);
+    for row in &rows[FAULT_STEP - WINDOW..FAULT_STEP] {
+        // SAFETY: live handle, valid out pointer.
+        unsafe {
+            step_row(d, row);
+            assert_eq!(pmsm_get_telemetry(d, &mut t), pmsm_status_t::PMSM_OK);
+        }
+        let w = pu(t.omega_est) * b.omega_e_rad_s;
+        let (id, iq) = (pu(t.i_d) * b.current_a, pu(t.i_q) * b.current_a);
+        let vd = 7.2 * id - w * 0.04017 * iq;
+        let vq = 7.2 * iq + w * (0.025025 * id + 0.305);
+        let v = pu(t.v_alpha).hypot(pu(t.v_beta)) * b.voltage_v;
+        assert!(
+            v <= 540.0 / 3f64.sqrt(),
+            "|v| = {v} V beyond the modulator's circle"
+        );
+        v_sum += v;
+        model_sum += vd.hypot(vq);
+    }
     // SAFETY: live handle, valid out pointers.
     unsafe {
         assert_eq!(pmsm_get_ipd(d, &mut ipd), pmsm_status_t::PMSM_OK);
@@ -162,34 +188,27 @@ fn the_detected_angle_and_the_telemetry_are_readable() {
     assert!(ipd.peaks.iter().all(|&p| p > 0), "{:?}", ipd.peaks);
     assert_eq!((ipd.fault, ipd.fault_value), (0, [0, 0]));
 
-    let pu = |x: i32| x as f64 / (1 << 24) as f64;
     let rpm = pu(t.omega_est) * b.omega_e_rad_s * 60.0 / std::f64::consts::TAU / 3.0;
     // At or near the 600 r/min reference (ramped in 0.15 s, a heavy rotor, 0.18 s before).
     assert!((450.0..620.0).contains(&rpm), "estimated {rpm} r/min");
     // Closed loop on the estimate: the controller's frame is the estimator's.
     assert_eq!(t.theta, t.theta_est);
-    // A running motor at no load (one sample of it: after the step to 600 r/min this run
-    // swings through the inverter's zero crossings, docs/drive.md "light load", by up to
-    // 0.3 A): a torque current within 0.25 pu of zero, both currents within 0.05 pu of their
-    // references (the d reference is the light-load current at this light load), and a
-    // commanded voltage above 90 % of the steady-state model's at the measured currents and
-    // the estimated speed, which ripples by a few percent (motor B: R 7.2 ohm, L_d 25.0 mH,
-    // L_q 40.2 mH, psi 0.305 V*s), and within the modulator's circle (V_dc / sqrt 3).
+    // A running motor at no load: a torque current within 0.25 pu of zero, both currents
+    // within 0.05 pu of their references (the d reference is the light-load current at this
+    // light load). After the step to 600 r/min this heavy rotor swings through the inverter's
+    // zero crossings (docs/drive.md "light load"): i_q by up to 0.6 A, and the commanded
+    // voltage between 0.75 and 1.45 of the steady-state model's, whose inductive terms the
+    // swing leaves out; over the window the mean |v| is within 10 % of the mean model.
     assert!(pu(t.i_q).abs() < 0.25, "{t:?}");
     assert!((pu(t.i_q) - pu(t.i_q_ref)).abs() < 0.05, "{t:?}");
     assert!(
         pu(t.i_d_ref) < 0.0 && (pu(t.i_d) - pu(t.i_d_ref)).abs() < 0.05,
         "{t:?}"
     );
-    let w = pu(t.omega_est) * b.omega_e_rad_s;
-    let (id, iq) = (pu(t.i_d) * b.current_a, pu(t.i_q) * b.current_a);
-    let vd = 7.2 * id - w * 0.04017 * iq;
-    let vq = 7.2 * iq + w * (0.025025 * id + 0.305);
-    let model = vd.hypot(vq);
-    let v = pu(t.v_alpha).hypot(pu(t.v_beta)) * b.voltage_v;
+    let ratio = v_sum / model_sum;
     assert!(
-        v > 0.9 * model && v <= 540.0 / 3f64.sqrt(),
-        "|v| = {v} V, model {model} V at {rpm} r/min, {t:?}"
+        (0.9..1.1).contains(&ratio),
+        "mean |v| {ratio} of the model's at {rpm} r/min, {t:?}"
     );
     // The current-model MRAS explains the measurement to well within 0.2 pu when locked.
     assert!(

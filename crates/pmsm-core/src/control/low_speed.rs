@@ -39,8 +39,9 @@
 //!   the circle for the filter's time (1.3 `I_max` on motor B).
 //!
 //! It costs copper: at standstill the rated current's loss. On the random family (`cargo xtask
-//! family`, seeds 1–8) it lifts the current-model MRAS from 248 to 278 runs of 320 and the NLO
-//! from 158 to 164 of 172; measured figures in docs/drive.md.
+//! family`, seeds 1–8) it lifts the current-model MRAS from 248 to 278 runs of 320 with the IP
+//! speed loop and from 256 to 290 with the drive's half-weighted reference; measured figures in
+//! docs/drive.md.
 //!
 //! Formats: currents [`Pu`] (Q8.24) of `I_b`; speeds in units of 2⁻¹² pu, as
 //! [`super::light_load`].
