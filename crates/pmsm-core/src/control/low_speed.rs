@@ -43,6 +43,25 @@
 //! speed loop and from 256 to 290 with the drive's half-weighted reference; measured figures in
 //! docs/drive.md.
 //!
+//! # Handover
+//!
+//! The back-EMF estimators' open-loop start runs the whole current along its imposed frame,
+//! nearly the rotor's d axis at no load. Stepping that current to the closed loop's `i_d* = 0`
+//! at the handover left the dead-time compensation, which takes its signs from the current
+//! reference, without the distortion of a current that still flowed for the current loop's
+//! response: the estimator's voltage was then wrong by up to `(4/3) V_dead` for a few
+//! milliseconds, as much as the EMF at the handover speed, and the NLO turned to the mirror
+//! angle (the start-up faults of the NLO in `cargo xtask family`, three of seed 2's four
+//! lost runs). So the handover after the start sets the faded level to the open loop's
+//! current and the drive lets it decay ([`LowSpeedConfig::decayed`]): by a sixteenth of itself
+//! every eighth sample, a time constant of 128 samples (6.4 ms at 20 kHz), within the same
+//! room. Only with `I_LS = 0`, the back-EMF estimators' default (with the low-speed current
+//! on, its fade from `I_LS` is the law; decaying it too slowed the current-model MRAS's fade
+//! in a fast start and motor B's averaged-inverter run at no load ended in its limit cycle,
+//! estimated speed σ 13.1 r/min against 8.8). Not after an open-loop reversal: under load its
+//! current is mostly torque, and the fade there changed which marginal reversals of the family
+//! held, not how many.
+//!
 //! Formats: currents [`Pu`] (Q8.24) of `I_b`; speeds in units of 2⁻¹² pu, as
 //! [`super::light_load`].
 
@@ -54,6 +73,9 @@ use crate::units::PerUnit;
 /// [`LowSpeedConfig::default_fade_rad_s`]: the fade's end as a fraction of the rated
 /// electrical speed.
 pub const LOW_SPEED_FADE_PER_RATED: f64 = 0.2;
+
+/// The handover current's decay per eight-sample update, as a shift (module docs, "handover").
+const HANDOVER_DECAY_SHIFT: u32 = 4;
 
 /// The low-speed current's configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,7 +94,8 @@ pub struct LowSpeedConfig {
 }
 
 impl LowSpeedConfig {
-    /// Off.
+    /// Off, and without a limit: no handover current either (the drive's configuration keeps
+    /// the limit with `I_LS = 0`, [`LowSpeedConfig::new`]).
     pub const OFF: Self = Self {
         current: 0,
         fade: 1 << 12,
@@ -96,9 +119,7 @@ impl LowSpeedConfig {
     ) -> Result<Self, ConfigError> {
         let i = in_range("low_speed_id_a", current_a, 0.0, 10.0 * base.current_a)?;
         let fade = positive("low_speed_fade_rad_s", fade_rad_s)?;
-        if i == 0.0 {
-            return Ok(Self::OFF);
-        }
+        // Off (`I_LS = 0`) keeps the limit: the handover's current fades within it.
         let current = pu_from_f64(i / base.current_a).to_bits();
         // ω_LS in units of 2⁻¹² pu, at least one; I_LS/ω_LS rounded down (the current then
         // reaches zero a fraction of a unit beyond ω_LS, within `max(0)`).
@@ -140,6 +161,20 @@ impl LowSpeedConfig {
     #[inline(always)]
     pub fn id_ref(&self, iq: Pu, omega: Pu) -> Pu {
         self.within_limit(self.faded(omega), iq, Pu::ZERO)
+    }
+
+    /// [`LowSpeedConfig::faded`]; with the low-speed current off, the level `previous` decayed
+    /// by a sixteenth and one LSB, not below 0: a d current set at the back-EMF estimators'
+    /// handover (the open loop's, [`crate::Drive`]) fades out over about 16 of the drive's
+    /// eight-sample updates instead of stepping to zero (module docs, "handover"). (With the
+    /// low-speed current on, its fade is the law, as it always was.)
+    #[inline(always)]
+    pub fn decayed(&self, omega: Pu, previous: Pu) -> Pu {
+        if self.current != 0 {
+            return self.faded(omega);
+        }
+        let p = previous.to_bits();
+        Pu::from_bits((p - (p >> HANDOVER_DECAY_SHIFT) - 1).max(0))
     }
 
     /// `I_LS (1 − |ω|/ω_LS)`, not below 0 (the drive takes it on one slot, the limit on
@@ -220,6 +255,47 @@ mod tests {
         assert!(LowSpeedConfig::new(-1.0, fade, lim, &base).is_err());
         assert!(LowSpeedConfig::new(20.0 * limit, fade, lim, &base).is_err());
         assert!(LowSpeedConfig::new(1.0, 0.0, lim, &base).is_err());
+    }
+
+    /// The handover's fade against its f64 recurrence `x ← x (1 − 2⁻ᵏ) − LSB`: within `2ᵏ`
+    /// LSB at every update (the shift's floor adds at most one LSB per update, and the decay
+    /// shrinks what came before by `1 − 2⁻ᵏ`), a time constant of about `2ᵏ` updates and zero
+    /// within a finite number of them with the low-speed current off; with it on, its fade.
+    #[test]
+    fn the_handover_current_decays_with_the_low_speed_current_off() {
+        let m = motor_b();
+        let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
+        let lim = pu_from_f64(1.0);
+        let rated_e = 3000.0 * core::f64::consts::TAU / 60.0 * 3.0;
+        let fade = LowSpeedConfig::default_fade_rad_s(rated_e);
+        let off = LowSpeedConfig::new(0.0, fade, lim, &base).unwrap();
+        let lsb = 1.0 / f64::from(1u32 << PU_FRAC);
+        let k = 1.0 / f64::from(1u32 << HANDOVER_DECAY_SHIFT);
+        let (mut x, mut want) = (pu_from_f64(1.0), 1.0);
+        let mut updates = 0;
+        while x > Pu::ZERO {
+            x = off.decayed(Pu::ZERO, x);
+            want = (want * (1.0 - k) - lsb).max(0.0);
+            updates += 1;
+            let err = (x.to_num::<f64>() - want).abs();
+            assert!(err <= (1.0 / k) * lsb, "{updates}: {x:?} {want}");
+            if updates == 1 << HANDOVER_DECAY_SHIFT {
+                // `2ᵏ` updates: `(1 − 2⁻ᵏ)^(2ᵏ)` of the start (0.356 at k = 4), e⁻¹ to 3 %:
+                // a time constant of `2ᵏ` updates.
+                let e = x.to_num::<f64>();
+                assert!((e - (1.0 - k).powf(1.0 / k)).abs() < 1e-4, "{e}");
+                assert!((e - (-1.0f64).exp()).abs() < 0.015, "{e}");
+            }
+            assert!(updates < 1000, "no end");
+        }
+        // Within the room the limit leaves: off, the limit is kept.
+        assert_eq!(off.within_limit(pu_from_f64(2.0), Pu::ZERO, Pu::ZERO), lim);
+        // On: the fade is the law, whatever came before.
+        let on = LowSpeedConfig::new(0.5 * base.current_a, fade, lim, &base).unwrap();
+        let omega = pu_from_f64(0.5 * fade / base.omega_e_rad_s);
+        let x = on.decayed(omega, pu_from_f64(1.0));
+        assert_eq!(x, on.faded(omega));
+        assert!((x.to_num::<f64>() - 0.25).abs() < 2e-3, "{x:?}");
     }
 
     /// A strongly salient motor: the current stops where the reluctance torque would take

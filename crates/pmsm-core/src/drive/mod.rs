@@ -578,8 +578,16 @@ impl Drive {
             self.flux.reset(&self.config.flux);
             self.light_load
                 .reset(&self.config.light_load, iq, estimate.omega);
+            // After the start, the open loop's current fades out instead of stepping to zero
+            // (`low_speed`, "handover").
             self.low_speed_faded = self.config.low_speed.faded(estimate.omega);
-            self.low_speed_id = self.config.low_speed.id_ref(iq, estimate.omega);
+            if !self.open_loop.is_reversal() {
+                self.low_speed_faded = self.low_speed_faded.max(self.config.open_loop.current);
+            }
+            self.low_speed_id =
+                self.config
+                    .low_speed
+                    .within_limit(self.low_speed_faded, iq, Pu::ZERO);
             self.slot = LAST_SLOT;
             self.state = DriveState::Run;
         }
@@ -645,7 +653,9 @@ impl Drive {
             if self.slot == 7 {
                 self.light_load
                     .update(&c.light_load, self.iq_ref, self.speed_filtered);
-                self.low_speed_faded = c.low_speed.faded(self.speed_filtered);
+                self.low_speed_faded = c
+                    .low_speed
+                    .decayed(self.speed_filtered, self.low_speed_faded);
             } else {
                 self.low_speed_id = c.low_speed.within_limit(
                     self.low_speed_faded,

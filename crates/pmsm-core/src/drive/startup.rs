@@ -147,6 +147,11 @@ impl OpenLoop {
         }
     }
 
+    /// The open loop is a reversal from the closed loop (not the start).
+    pub fn is_reversal(&self) -> bool {
+        self.reversal
+    }
+
     /// In a reversal, once the imposed frame has come through zero speed to half the handover
     /// speed in the new direction: the angle the estimator restarts from (at zero speed), the rotor behind the
     /// frame by the lag it had when the reversal began. Near zero speed a back-EMF estimator
