@@ -136,17 +136,24 @@ fn servo_motor_fixed_point_matches_f64() {
 
 /// The AO reproduces Solsona, Valla, Muravchik (2000) eq. 13–14 on the servo motor with g T_s = 0.25 (the required
 /// bounds: 3 % of the angle error, 8 % of the speed error).
+/// The AO `c` on the servo at the constant mechanical speed `w_m` (rad/s), 20 kHz, 4000
+/// samples: its mean angle and speed errors over the last 1000, and eq. 13–14's speed and
+/// angle errors at `g` = 5000 rad/s.
+fn servo_ao_steady(c: AoConfig, b: &PerUnit, w_m: f64) -> (f64, f64, f64, f64) {
+    let s = Trajectory::new(servo(), Profile::constant(w_m)).samples(5e-5, 4000);
+    let est = run_fixed(&mut Ao::new(c), b, &s);
+    let e = errors(&est, &s);
+    let (ew, et) = ao_steady_errors(4.0 * w_m, 5000.0);
+    (mean(&e, 3000, |x| x.0), mean(&e, 3000, |x| x.1), ew, et)
+}
+
 #[test]
 fn servo_ao_matches_eq_13_14_at_large_g_ts() {
     let m = servo();
     let b = base(&m, 48.0, 20e3);
     for w_m in [300.0, 150.0, 60.0] {
-        let tr = Trajectory::new(m, Profile::constant(w_m));
-        let s = tr.samples(5e-5, 4000);
-        let est = run_fixed(&mut Ao::new(AoConfig::new(&m, &b, 5000.0).unwrap()), &b, &s);
-        let e = errors(&est, &s);
-        let (angle, speed) = (mean(&e, 3000, |x| x.0), mean(&e, 3000, |x| x.1));
-        let (ew, et) = ao_steady_errors(4.0 * w_m, 5000.0);
+        let (angle, speed, ew, et) =
+            servo_ao_steady(AoConfig::new(&m, &b, 5000.0).unwrap(), &b, w_m);
         println!(
             "servo {w_m} rad/s: angle {:.3}° (eq. 14 {:.3}°), speed {speed:.3} (eq. 13 {ew:.3}) rad/s",
             deg(angle),
@@ -271,12 +278,7 @@ fn lag_compensated_ao_removes_eq_13_14() {
         .unwrap();
     assert!(c.is_lag_compensated());
     for w_m in [300.0, 150.0, 60.0] {
-        let tr = Trajectory::new(m, Profile::constant(w_m));
-        let s = tr.samples(5e-5, 4000);
-        let est = run_fixed(&mut Ao::new(c), &b, &s);
-        let e = errors(&est, &s);
-        let (angle, speed) = (mean(&e, 3000, |x| x.0), mean(&e, 3000, |x| x.1));
-        let (ew, et) = ao_steady_errors(4.0 * w_m, 5000.0);
+        let (angle, speed, ew, et) = servo_ao_steady(c, &b, w_m);
         println!(
             "servo {w_m} rad/s compensated: angle {:.4}° (eq. 14 {:.3}°), speed {speed:.4} rad/s (eq. 13 {ew:.3})",
             deg(angle),

@@ -294,7 +294,10 @@ impl Drive {
         self.light_load
             .reset(&self.config.light_load, Pu::ZERO, Pu::ZERO);
         self.low_speed_faded = self.config.low_speed.faded(Pu::ZERO);
-        self.low_speed_id = self.config.low_speed.id_ref(Pu::ZERO, Pu::ZERO);
+        self.low_speed_id =
+            self.config
+                .low_speed
+                .within_limit(self.low_speed_faded, Pu::ZERO, Pu::ZERO);
         self.speed.reset(Pu::ZERO, Pu::ZERO);
         self.iq_ref = Pu::ZERO;
         // The first sample of the closed loop is slot 0: it runs the speed loop. The speed
@@ -645,8 +648,8 @@ impl Drive {
             self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         }
         // Every eighth sample: the light-load d current follows |i_q*| slowly and the
-        // low-speed current fades with the speed (slot 7, beside the monitor's tracking
-        // check); the low-speed current is held within the current limit that the light-load
+        // low-speed current fades with the speed, or the start's handover current decays
+        // (slot 7, beside the monitor's tracking check); the low-speed current is held within the current limit that the light-load
         // filter's |i_q*| leaves on slot 3 (beside the health figure, and with MTPA and field
         // weakening the field-weakening integrator).
         if self.slot & 3 == 3 {
