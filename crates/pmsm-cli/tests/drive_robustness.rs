@@ -219,6 +219,8 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
     // The 24 V servo at +90 r/min, known start, a load above its rated torque from 0.2 s: for
     // each estimator, the first sample with the true speed below zero after the load, and
     // the first fault.
+    // The current-model MRAS follows the rotor backwards (driven_backwards) or loses it
+    // (loss_of_lock, with its design gains).
     // A back-EMF estimator whose estimate follows the rotor backwards makes the drive try to
     // turn it back through the open loop (drive/startup.rs, reversal): the load wins and that
     // reversal's handover check trips (driven_backwards if the estimate still turns
@@ -226,7 +228,7 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
     // reaches −3700 r/min first and the overspeed trip takes it, 16 ms after it turned; 70 ms
     // with a PWM update delay of one period).
     for (observer, expected) in [
-        ("mras-current", &["loss_of_lock"][..]),
+        ("mras-current", &["driven_backwards", "loss_of_lock"][..]),
         ("nlo", &["driven_backwards", "handover"][..]),
         ("ao", &["driven_backwards", "handover", "overspeed"][..]),
     ] {
@@ -314,9 +316,11 @@ fn the_plot_shows_no_angle_error_before_the_estimator_runs() {
 
 /// A 1.4 kW, 320 V surface motor of the random family (`cargo xtask family 40 --seed 2`,
 /// #28), reversed from half rated speed under a load that follows the direction of
-/// rotation, with the IP speed loop of Khlaief, Boussak, Gossa (2012) and without the
-/// low-speed current: through zero speed the current-model MRAS slips to the wrong side while
-/// the rotor keeps turning the old way. (The drive's defaults carry it through: below.)
+/// rotation, with the IP speed loop of Khlaief, Boussak, Gossa (2012), without the low-speed
+/// current and with the MRAS's plain design (`ω_n = 0.02/T_s`, 60.5 Hz, not raised for the
+/// light rotor, and no low-speed schedule): through zero speed the
+/// current-model MRAS slips to the wrong side while the rotor keeps turning the old way. (The
+/// drive's defaults carry it through: below.)
 const LOST_REVERSAL: &str = "duration_s = 2.9\n\
     motor = { name = \"family 28\", pole_pairs = 7, rs_ohm = 2.0122711730066065, \
     ld_h = 0.002504521734108593, lq_h = 0.002504521734108593, flux_wb = 0.04944300841185866, \
@@ -324,7 +328,8 @@ const LOST_REVERSAL: &str = "duration_s = 2.9\n\
     rated_current_a = 5.544267117992307, rated_speed_rpm = 3327 }\n\
     [inverter]\nvdc_v = 320\npwm_hz = 19000\ndead_time_s = 0.00000135\nmodel = \"switching\"\n\
     [control]\nobserver = \"mras-current\"\nstartup = \"auto\"\ndeadtime_compensation = true\n\
-    speed_loop = \"ip\"\nlow_speed_id_a = 0.0\n\
+    speed_loop = \"ip\"\nlow_speed_id_a = 0.0\nmras_low_speed_schedule = false\n\
+    mras_bandwidth_hz = 60.5\n\
     [initial]\ntheta_e_deg = 227.280\n\
     [speed_ref]\nt_s = [0.0, 0.6, 0.76604, 2.56604, 2.89812]\n\
     rpm = [0.0, 0.0, 1663.5, 1663.5, -1663.5]\n\
@@ -365,8 +370,8 @@ fn the_low_speed_schedule_carries_that_reversal_through() {
         .replace("2.89812]", "2.89812, 3.4]")
         .replace("-1663.5]", "-1663.5, -1663.5]")
         .replace(
-            "deadtime_compensation = true\n",
-            "deadtime_compensation = true\nmras_low_speed_schedule = true\n",
+            "mras_low_speed_schedule = false\n",
+            "mras_low_speed_schedule = true\n",
         );
     let run = run_scenario(&scenario_text("scheduled-reversal", &text)).unwrap();
     assert!(first_fault(&run.rows).is_none());

@@ -27,10 +27,14 @@ fn unit(x: Unit) -> f32 {
 
 impl Format for Fault {
     fn format(&self, f: Formatter<'_>) {
+        // The faults without a payload, and those with one per-unit value, share one format
+        // string each under their `Fault::name`: a string and its encoder per variant cost
+        // the board's flash more than the name sent as text costs the link.
         match *self {
-            Fault::OverCurrent(i) => write!(f, "overcurrent ({=f32} pu)", pu(i)),
-            Fault::BusUnderVoltage(v) => write!(f, "bus_undervoltage ({=f32} pu)", pu(v)),
-            Fault::BusOverVoltage(v) => write!(f, "bus_overvoltage ({=f32} pu)", pu(v)),
+            Fault::OverCurrent(x)
+            | Fault::BusUnderVoltage(x)
+            | Fault::BusOverVoltage(x)
+            | Fault::Overspeed(x) => write!(f, "{=str} ({=f32} pu)", self.name(), pu(x)),
             Fault::InitialPosition(e) => write!(f, "initial_position ({})", e),
             Fault::Handover(theta, w) => write!(
                 f,
@@ -40,11 +44,9 @@ impl Format for Fault {
             ),
             Fault::CurrentSensor(phase) => write!(f, "current_sensor (phase {})", phase),
             Fault::PhaseLoss(phase) => write!(f, "phase_loss (phase {=u8})", phase),
-            Fault::Stall => write!(f, "stall"),
-            Fault::LossOfLock => write!(f, "loss_of_lock"),
-            Fault::Overrun => write!(f, "overrun"),
-            Fault::Overspeed(w) => write!(f, "overspeed ({=f32} pu)", pu(w)),
-            Fault::DrivenBackwards => write!(f, "driven_backwards"),
+            Fault::Stall | Fault::LossOfLock | Fault::Overrun | Fault::DrivenBackwards => {
+                write!(f, "{=str}", self.name())
+            }
         }
     }
 }

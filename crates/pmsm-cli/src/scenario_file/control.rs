@@ -81,7 +81,10 @@ pub struct Control {
     /// form, 1: the PI form; `pmsm_core::SpeedDesign::reference_weight`); not with
     /// `speed_loop`.
     pub speed_reference_weight: Option<f64>,
-    /// MRAS-current adaptation bandwidth, Hz.
+    /// MRAS-current adaptation bandwidth `ω_n/(2π)`, Hz: the plain design at `k_∞`
+    /// (`pmsm_core::MrasCurrentGains::design`). Default: `MrasCurrentGains::default_for`'s,
+    /// `0.02/T_s` raised on a light rotor and designed for a salient motor's loaded
+    /// sensitivity (docs/khlaief2012.md §2).
     pub mras_bandwidth_hz: Option<f64>,
     /// Raise the MRAS-current adaptation gains at low speed, up to four times, where ξ's
     /// sensitivity to the position error falls (`MrasCurrentGains::low_speed_schedule`,

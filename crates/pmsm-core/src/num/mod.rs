@@ -215,7 +215,7 @@ impl Reciprocal {
             return None;
         }
         // The largest pre-shift keeping r = 2^(61 − pre)/d at or above 2³⁰.
-        let pre = libm::floor(31.0 - libm::log2(d)).clamp(0.0, 30.0) as u32;
+        let pre = (31 - log2_ceil(d)).clamp(0, 30) as u32;
         let r = libm::round(libm::ldexp(1.0, 61 - pre as i32) / d);
         Some(Self {
             r: r.min(i32::MAX as f64) as i32,
@@ -433,11 +433,28 @@ pub(crate) fn follow(y: Pu, x: Pu, k: u32) -> Pu {
 /// The shift `k` of [`follow`] for a time constant of `tau_steps` steps: its `2^k` the power of
 /// two nearest in the logarithm (`round(log2 τ)`), within 0..=20; `None` when `tau_steps` is not
 /// a positive finite number.
-// Out of line: its `log2` would otherwise be inlined into every configuration that uses it.
-#[inline(never)]
 pub(crate) fn follow_shift(tau_steps: f64) -> Option<u32> {
-    let k = libm::round(libm::log2(tau_steps));
-    k.is_finite().then_some(k.clamp(0.0, 20.0) as u32)
+    (tau_steps > 0.0 && tau_steps.is_finite()).then(|| log2_round(tau_steps).clamp(0, 20) as u32)
+}
+
+/// The binary exponent and the significand in [1, 2) of a positive normal `x`, from its bits.
+fn exponent_significand(x: f64) -> (i32, f64) {
+    let bits = x.to_bits();
+    let significand = f64::from_bits((bits & ((1 << 52) - 1)) | (1023 << 52));
+    (((bits >> 52) & 0x7ff) as i32 - 1023, significand)
+}
+
+/// `round(log₂ x)` of a positive normal `x`: its exponent, plus one from a significand of √2
+/// up (whose logarithm is ½). From the bits: no library logarithm in the board's image.
+pub(crate) fn log2_round(x: f64) -> i32 {
+    let (e, m) = exponent_significand(x);
+    e + (m >= core::f64::consts::SQRT_2) as i32
+}
+
+/// `⌈log₂ x⌉` of a positive normal `x`: its exponent, plus one unless it is a power of two.
+pub(crate) fn log2_ceil(x: f64) -> i32 {
+    let (e, m) = exponent_significand(x);
+    e + (m > 1.0) as i32
 }
 
 /// Converts a float to [`Pu`], rounding to nearest and saturating (NaN gives 0).

@@ -183,3 +183,25 @@ proptest! {
         }
     }
 }
+
+/// The logarithms from the bits agree with the library's `round(log2 x)` and
+/// `ceil(log2 x)` (the f64 reference) over fifty decades, powers of two and their
+/// neighbours included.
+#[test]
+fn log2_from_the_bits_matches_the_library() {
+    let mut x = 1e-20;
+    let mut n = 0;
+    while x < 1e30 {
+        for y in [x, libm::ldexp(1.0, libm::ilogb(x)), libm::nextafter(x, 0.0)] {
+            assert_eq!(
+                super::log2_round(y),
+                libm::round(libm::log2(y)) as i32,
+                "{y}"
+            );
+            assert_eq!(super::log2_ceil(y), libm::ceil(libm::log2(y)) as i32, "{y}");
+            n += 1;
+        }
+        x *= 1.37;
+    }
+    assert!(n > 300, "{n}");
+}

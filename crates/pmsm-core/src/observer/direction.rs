@@ -61,7 +61,7 @@ impl DirectionConfig {
     /// Tracker for sample period `sample_s` and base electrical speed `omega_b_rad_s`.
     pub fn new(sample_s: f64, omega_b_rad_s: f64) -> Self {
         let samples = TIME_CONSTANT_S / sample_s;
-        let shift = libm::round(libm::log2(samples)).clamp(1.0, 16.0) as u16;
+        let shift = crate::num::log2_round(samples).clamp(1, 16) as u16;
         let step = THRESHOLD_PU * omega_b_rad_s * sample_s / Angle::RAD_PER_LSB;
         Self {
             shift,

@@ -1,6 +1,8 @@
 //! The adaptation gains of the current-model MRAS and their design (module docs, "Gains").
 
-use super::DEFAULT_BANDWIDTH_TS;
+use super::{
+    DEFAULT_BANDWIDTH_TS, KI_TS_ROOM, LOAD_GAIN_ROOM, LOAD_STEP_LAG_RAD, MAX_DEFAULT_BANDWIDTH_TS,
+};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
@@ -45,8 +47,50 @@ impl MrasCurrentGains {
         }
     }
 
-    /// [`MrasCurrentGains::design`] at `ω_n = 0.02/T_s`.
+    /// The defaults: [`MrasCurrentGains::design`] at
+    /// [`MrasCurrentGains::default_bandwidth_rad_s`], the low-speed schedule off.
+    #[inline(always)]
     pub fn default_for(motor: &MotorParams, base: &PerUnit) -> Self {
-        Self::design(motor, DEFAULT_BANDWIDTH_TS / base.sample_s)
+        Self::design(motor, Self::default_bandwidth_rad_s(motor, base))
     }
+
+    /// The default natural frequency, rad/s: `ω_n = 0.02/T_s`, raised on a light rotor towards
+    /// `√(a I_b/δ_L)`, `δ_L` = 0.15 rad (the loop's angle error after a step `α` of the
+    /// acceleration is of the order of `α/ω_n²`: a rated load step then lags the estimate by
+    /// about `δ_L`), at most `0.06/T_s` and as far as the gains' per-unit coefficients keep
+    /// room in their formats (`K_i T_s` below ¾, the load gain below 8; module docs,
+    /// "Formats").
+    #[inline(always)]
+    pub fn default_bandwidth_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
+        let ts = base.sample_s;
+        let (k, rho) = (Self::k_inf(motor), motor.lq_h / motor.ld_h);
+        let a = motor.p() * motor.kt_nm_per_a / motor.j_kg_m2;
+        let i_b = base.current_a;
+        // `K_i T_s` per unit is `1.5 ω_n² T_s c`, `K_L`'s `ω_n³ T_s I_b/(4 a k_∞ ρ)`.
+        let c = i_b * i_b / (rho * base.omega_e_rad_s * k);
+        let w2 = (a * i_b / LOAD_STEP_LAG_RAD).min(KI_TS_ROOM / (1.5 * ts * c));
+        let wn = sqrt_below(w2, MAX_DEFAULT_BANDWIDTH_TS / ts);
+        let floor = DEFAULT_BANDWIDTH_TS / ts;
+        if wn * wn * wn * ts * i_b > LOAD_GAIN_ROOM * 4.0 * a * k * rho {
+            floor
+        } else {
+            wn.max(floor)
+        }
+    }
+}
+
+/// `min(√x, ceiling)` by Newton's iteration from `ceiling` (decreasing; six steps reach
+/// double precision from three times the root, the range the default bandwidth spans, and
+/// below the floor the result is not used): a few words where the board folds it, and no
+/// library square root where it does not.
+#[inline(always)]
+fn sqrt_below(x: f64, ceiling: f64) -> f64 {
+    if x >= ceiling * ceiling {
+        return ceiling;
+    }
+    let mut w = ceiling;
+    for _ in 0..6 {
+        w = 0.5 * (w + x / w);
+    }
+    w
 }

@@ -74,8 +74,13 @@
 //! K_p = 2 ω_n / k_∞,   K_i = ω_n² / k_∞,   k_∞ = (ψ/L_q)²
 //! ```
 //!
-//! Default `ω_n = 0.02/T_s` (280 rad/s at 14 kHz). At low speed `k_δ` falls (at zero current
-//! as `ω²/(ω² + ω_c²)`, `ω_c = R/√(L_d L_q)`) and the loop slows, which is the MRAS's known
+//! Default ([`MrasCurrentGains::default_for`]): `ω_n = 0.02/T_s` (280 rad/s at 14 kHz), raised
+//! on a light rotor towards `√(a I_b/0.15 rad)`, at most `0.06/T_s` and as far as the
+//! per-unit gains keep room in their formats: the loop's angle error after a step `α` of the
+//! acceleration is of the order of `α/ω_n²`, and a rated load step on a rotor with a 30 ms
+//! mechanical time constant at half rated speed outruns the design at `0.02/T_s`. At low
+//! speed `k_δ` falls (at zero current as `ω²/(ω² + ω_c²)`, `ω_c = R/√(L_d L_q)`) and the loop
+//! slows, which is the MRAS's known
 //! weakness near standstill ("Low-speed schedule" makes up for it down to `ω_c/√3`); the
 //! position error at steady state is still zero with exact parameters. Accepted range:
 //! `K_p ∈ [0, 1/(k_∞ T_s)]`, `K_i ∈ [0, 0.25/(k_∞ T_s²)]`, and within the formats of their
@@ -158,6 +163,14 @@ use crate::num::PU_FRAC;
 
 /// Default `ω_n T_s` of the adaptation loop.
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.02;
+/// Largest `ω_n T_s` of the default design (raised for a light rotor).
+pub const MAX_DEFAULT_BANDWIDTH_TS: f64 = 0.06;
+/// The angle lag, rad, the default design allows a rated load step (`α/ω_n²`).
+pub(super) const LOAD_STEP_LAG_RAD: f64 = 0.15;
+/// Largest per-unit `K_i T_s` and load gain a raised default bandwidth may reach (of 1 and
+/// 16 in their formats).
+pub(super) const KI_TS_ROOM: f64 = 0.75;
+pub(super) const LOAD_GAIN_ROOM: f64 = 8.0;
 
 /// Levels of the low-speed schedule (module docs, "Low-speed schedule").
 pub(super) const BOOST_LEVELS: usize = 5;

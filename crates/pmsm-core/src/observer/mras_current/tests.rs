@@ -186,3 +186,44 @@ fn low_speed_schedule_follows_its_definition() {
     assert_eq!(off.gains_at(Pu::ZERO), off.design);
     assert_eq!(off.design, fixed);
 }
+
+/// The default design against its definition in f64 (`libm::sqrt`): motor B's rotor keeps
+/// `ω_n = 0.02/T_s`; lighter rotors raise it towards `√(a I_b/0.15)` within `0.06/T_s` and the
+/// formats' room, and the configuration takes the gains.
+#[test]
+fn default_design_follows_its_definition() {
+    let (m, b) = motor_b();
+    let ts = b.sample_s;
+    let floor = 0.02 / ts;
+    let reference = |m: &MotorParams| {
+        let (k, rho) = ((m.flux_wb / m.lq_h).powi(2), m.lq_h / m.ld_h);
+        let a = m.p() * m.kt_nm_per_a / m.j_kg_m2;
+        let c = b.current_a * b.current_a / (rho * b.omega_e_rad_s * k);
+        let wn = libm::sqrt(a * b.current_a / 0.15)
+            .min(libm::sqrt(0.75 / (1.5 * ts * c)))
+            .min(0.06 / ts);
+        let kl_pu = wn * wn * wn * ts * b.current_a / (4.0 * a * k * rho);
+        if kl_pu > 8.0 { floor } else { wn.max(floor) }
+    };
+    let got = MrasCurrentGains::default_bandwidth_rad_s(&m, &b);
+    assert!((got - floor).abs() < 1e-9 * floor, "{got}");
+    assert_eq!(
+        MrasCurrentGains::default_for(&m, &b),
+        MrasCurrentGains::design(&m, got)
+    );
+    let mut raised = 0;
+    for j in [0.3, 0.1, 0.03, 0.01] {
+        let mut light = m;
+        light.j_kg_m2 *= j;
+        let (got, want) = (
+            MrasCurrentGains::default_bandwidth_rad_s(&light, &b),
+            reference(&light),
+        );
+        assert!((got - want).abs() < 1e-9 * want, "J × {j}: {got} {want}");
+        raised += (got > 1.01 * floor) as u32;
+        let g = MrasCurrentGains::default_for(&light, &b);
+        assert!(!g.low_speed_schedule);
+        assert!(MrasCurrentConfig::new(&light, &b, g).is_ok());
+    }
+    assert!(raised >= 2, "{raised}");
+}
