@@ -30,6 +30,16 @@ pub enum SpeedLoopForm {
     Pi,
 }
 
+/// The current whose signs the dead-time compensation takes (`pmsm_core::CurrentSource`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DeadTimeCurrent {
+    /// The current reference turned to αβ (the default).
+    Reference,
+    /// The measured current.
+    Measured,
+}
+
 /// Start-up modes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -141,6 +151,9 @@ pub struct Control {
     /// dead-time compensation to it (`pmsm_core::DriveDesign::deadtime_calibration`; default
     /// on when the compensation acts on the command and the drive is told a dead time).
     pub deadtime_calibration: Option<bool>,
+    /// The current whose signs the dead-time compensation takes: `"reference"` (the default)
+    /// or `"measured"` (docs/drive.md, "dead-time compensation: which current's sign").
+    pub deadtime_current: Option<DeadTimeCurrent>,
     /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
     /// default false).
     #[serde(default)]

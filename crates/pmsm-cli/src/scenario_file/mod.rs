@@ -66,7 +66,9 @@ pub mod faults;
 pub mod hardware;
 pub mod profiles;
 
-pub use control::{Compensation, CompensationMode, Control, ObserverKind, SpeedLoopForm, Startup};
+pub use control::{
+    Compensation, CompensationMode, Control, DeadTimeCurrent, ObserverKind, SpeedLoopForm, Startup,
+};
 pub use faults::{Faults, Phase, PhasePair};
 pub use hardware::{Inverter, InverterKind, Sensing};
 pub use profiles::Breakpoints;

@@ -1,10 +1,12 @@
 //! The fixed-point drive of a scenario, from its `[inverter]` and `[control]` tables and its
 //! motor: the one place where the per-unit bases, the design and the configuration are made.
 
-use crate::scenario_file::{CompensationMode, ObserverKind, Scenario, SpeedLoopForm, Startup};
+use crate::scenario_file::{
+    CompensationMode, DeadTimeCurrent, ObserverKind, Scenario, SpeedLoopForm, Startup,
+};
 use anyhow::{Result, anyhow, bail};
-use pmsm_core::DeadTimeMode;
 use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
+use pmsm_core::{CurrentSource, DeadTimeMode};
 use pmsm_core::{DistortionDesign, DistortionLearner};
 use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode, Tracker, TrackerDesign};
 use pmsm_core::{EstimatorKind, IP_FORM, MrasCurrentGains, PI_FORM};
@@ -171,6 +173,12 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
     if let Some(on) = c.deadtime_calibration {
         design.deadtime_calibration = on;
+    }
+    if let Some(source) = c.deadtime_current {
+        design.deadtime.source = match source {
+            DeadTimeCurrent::Reference => CurrentSource::Reference,
+            DeadTimeCurrent::Measured => CurrentSource::Measured,
+        };
     }
     if let Some(i) = c.light_load_id_a {
         design.light_load_id_a = i;
