@@ -6,7 +6,7 @@
 // The values compared exactly are copied from the file, not computed.
 #![allow(clippy::float_cmp)]
 
-use pmsm_cli::commands::simulate::stats::{first_fault, rms_angle, speed_err, window};
+use pmsm_cli::commands::simulate::stats::{first_fault, rms_angle, speed_err, std_dev, window};
 use pmsm_cli::commands::simulate::{build_drive, build_plant, run_scenario};
 use pmsm_cli::scenario_file;
 
@@ -445,16 +445,7 @@ const SALIENT_540V: &str = "duration_s = 2.1\n\
 
 #[test]
 fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
-    let sigma = |rows: &[&pmsm_cli::commands::simulate::Row]| {
-        let n = rows.len() as f64;
-        let mean = rows.iter().map(|r| r.speed_est_rpm).sum::<f64>() / n;
-        (rows
-            .iter()
-            .map(|r| (r.speed_est_rpm - mean).powi(2))
-            .sum::<f64>()
-            / n)
-            .sqrt()
-    };
+    let sigma = |rows: &[&pmsm_cli::commands::simulate::Row]| std_dev(rows, |r| r.speed_est_rpm);
     let reference = run_scenario(&scenario_text("salient-540v-reference", SALIENT_540V)).unwrap();
     let no_load = window(&reference.rows, 1.2, 1.46);
     let fault = first_fault(&reference.rows).map(|r| (r.fault(), r.t_s));

@@ -93,8 +93,7 @@ pub struct Control {
     pub speed_reference_weight: Option<f64>,
     /// MRAS-current adaptation bandwidth `ω_n/(2π)`, Hz: the plain design at `k_∞`
     /// (`pmsm_core::MrasCurrentGains::design`). Default: `MrasCurrentGains::default_for`'s,
-    /// `0.02/T_s` raised on a light rotor and designed for a salient motor's loaded
-    /// sensitivity (docs/khlaief2012.md §2).
+    /// `0.02/T_s` raised on a light rotor (docs/khlaief2012.md §2).
     pub mras_bandwidth_hz: Option<f64>,
     /// Raise the MRAS-current adaptation gains at low speed, up to four times, where ξ's
     /// sensitivity to the position error falls (`MrasCurrentGains::low_speed_schedule`,

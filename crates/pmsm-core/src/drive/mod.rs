@@ -649,9 +649,9 @@ impl Drive {
         }
         // Every eighth sample: the light-load d current follows |i_q*| slowly and the
         // low-speed current fades with the speed, or the start's handover current decays
-        // (slot 7, beside the monitor's tracking check); the low-speed current is held within the current limit that the light-load
-        // filter's |i_q*| leaves on slot 3 (beside the health figure, and with MTPA and field
-        // weakening the field-weakening integrator).
+        // (slot 7, beside the monitor's tracking check); the low-speed current is held within
+        // the current limit that the light-load filter's |i_q*| leaves on slot 3 (beside the
+        // health figure, and with MTPA and field weakening the field-weakening integrator).
         if self.slot & 3 == 3 {
             if self.slot == 7 {
                 self.light_load

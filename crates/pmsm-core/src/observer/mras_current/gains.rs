@@ -81,8 +81,8 @@ impl MrasCurrentGains {
 
 /// `min(√x, ceiling)` by Newton's iteration from `ceiling` (decreasing; six steps reach
 /// double precision from three times the root, the range the default bandwidth spans, and
-/// below the floor the result is not used): a few words where the board folds it, and no
-/// library square root where it does not.
+/// below the floor the result is not used): a loop of a few instructions where a library
+/// square root would add some hundred bytes to the board's image.
 #[inline(always)]
 fn sqrt_below(x: f64, ceiling: f64) -> f64 {
     if x >= ceiling * ceiling {

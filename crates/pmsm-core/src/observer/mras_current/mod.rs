@@ -80,9 +80,9 @@
 //! acceleration is of the order of `α/ω_n²`, and a rated load step on a rotor with a 30 ms
 //! mechanical time constant at half rated speed outruns the design at `0.02/T_s`. At low
 //! speed `k_δ` falls (at zero current as `ω²/(ω² + ω_c²)`, `ω_c = R/√(L_d L_q)`) and the loop
-//! slows, which is the MRAS's known
-//! weakness near standstill ("Low-speed schedule" makes up for it down to `ω_c/√3`); the
-//! position error at steady state is still zero with exact parameters. Accepted range:
+//! slows, which is the MRAS's known weakness near standstill ("Low-speed schedule" makes up
+//! for it down to `ω_c/√3`); the position error at steady state is still zero with exact
+//! parameters. Accepted range:
 //! `K_p ∈ [0, 1/(k_∞ T_s)]`, `K_i ∈ [0, 0.25/(k_∞ T_s²)]`, and within the formats of their
 //! per-unit values ("Formats").
 //!
