@@ -478,3 +478,47 @@ fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
     assert!(rms_angle(&no_load) < 0.01);
     assert!(rms_angle(&loaded) < 0.02);
 }
+
+/// Family seed 3 #23: a 320 V surface motor, 7 pole pairs, the NLO with the defaults: the
+/// family's manoeuvre, reversed under 60 % of rated torque that opposes the motion and changes
+/// sign mid-ramp.
+const SURFACE_320V_NLO: &str = "duration_s = 4.615267\n\
+    motor = { name = \"family 23\", pole_pairs = 7, rs_ohm = 0.6496940474133075, \
+    ld_h = 0.002166987411651082, lq_h = 0.002166987411651082, flux_wb = 0.06711119335295594, \
+    j_kg_m2 = 0.002540272634386322, b_nm_s = 0.00017804595980845547, \
+    rated_current_a = 6.833417914857802, rated_speed_rpm = 3111 }\n\
+    [inverter]\nvdc_v = 320\npwm_hz = 19000\ndead_time_s = 0.00000177\nmodel = \"switching\"\n\
+    [control]\nobserver = \"nlo\"\nstartup = \"auto\"\ndeadtime_compensation = true\n\
+    [initial]\ntheta_e_deg = 275.753\n\
+    [speed_ref]\nt_s = [0.0, 0.6, 0.843053, 2.643053, 3.12916, 3.62916, 4.115267]\n\
+    rpm = [0.0, 0.0, 1555.5, 1555.5, -1555.5, -1555.5, 1555.5]\n\
+    [load]\nt_s = [0.0, 1.343053, 1.344053, 1.843053, 1.844053, 2.343053, 2.344053, 2.837496, \
+    2.934717, 3.823603, 3.920824]\n\
+    nm = [0.0, 0.0, 4.085907, 4.085907, 0.0, 0.0, 4.085907, 4.085907, -4.085907, -4.085907, \
+    4.085907]\n";
+
+#[test]
+fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
+    // The default with the NLO: the measured currents' signs.
+    let measured = run_scenario(&scenario_text("surface-320v-nlo", SURFACE_320V_NLO)).unwrap();
+    assert!(first_fault(&measured.rows).is_none());
+    let reversed = window(&measured.rows, 3.3, 3.6);
+    println!(
+        "measured signs: reversed under load {:.4} rad rms, speed error {:.3} %",
+        rms_angle(&reversed),
+        100.0 * speed_err(&reversed)
+    );
+    assert!(rms_angle(&reversed) < 0.02);
+    assert!(speed_err(&reversed) < 0.01);
+
+    // The reference's signs: through the open-loop reversal the current leaves its reference
+    // and the NLO turns to the mirror angle; the load drives the rotor backwards.
+    let text = SURFACE_320V_NLO.replace(
+        "deadtime_compensation = true\n",
+        "deadtime_compensation = true\ndeadtime_current = \"reference\"\n",
+    );
+    let reference = run_scenario(&scenario_text("surface-320v-nlo-reference", &text)).unwrap();
+    let fault = first_fault(&reference.rows).map(|r| (r.fault(), r.t_s));
+    println!("reference signs: fault {fault:?}");
+    assert_eq!(fault.map(|f| f.0), Some("driven_backwards"));
+}

@@ -46,7 +46,7 @@
 //! 2 LSB of the f64 formula.
 
 use crate::error::ConfigError;
-use crate::frames::{Abc, AlphaBeta, inverse_clarke};
+use crate::frames::{Abc, AlphaBeta, Dq, inverse_clarke};
 use crate::num::{Coef, Pu, Reciprocal, pu_from_f64, round_shift_sat, wmul};
 use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative};
 use crate::units::PerUnit;
@@ -78,13 +78,16 @@ impl DeadTimeMode {
     }
 }
 
-/// Which current the drive passes to [`DeadTimeConfig::error_vector`].
+/// Which current the drive passes to [`DeadTimeConfig::error_vector`] (docs/drive.md,
+/// "dead-time compensation: which current's sign").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CurrentSource {
-    /// The measured current.
+    /// The measured current, in the controller's frame turned to the middle of the period the
+    /// command acts over, while the current vector lies beyond the band (`|i_d| + |i_q| >
+    /// i_band`); within it, the reference.
     Measured,
-    /// The current reference (rotated to αβ).
+    /// The current reference through the current loop's lag, turned likewise.
     #[default]
     Reference,
 }
@@ -226,6 +229,15 @@ impl DeadTimeConfig {
             return Pu::ZERO;
         }
         self.k_bus.apply(vdc).saturating_add(self.v_const)
+    }
+
+    /// Whether the current vector `i` lies beyond the band, `|i_d| + |i_q| > i_band` (the sum
+    /// is at least the vector's length): where [`CurrentSource::Measured`] takes the measured
+    /// current's signs (docs/drive.md, "dead-time compensation: which current's sign").
+    #[inline(always)]
+    pub(crate) fn beyond_band(&self, i: Dq) -> bool {
+        let (d, q) = (i.d.to_bits(), i.q.to_bits());
+        d.saturating_abs().saturating_add(q.saturating_abs()) > self.band_bits
     }
 
     /// `sat(i/i_band)` in [−1, 1], Q4.28. Beyond `band_bits` (the band rounded up to an
@@ -380,6 +392,29 @@ mod tests {
                 Pu::from_num(est),
                 "{mode:?}"
             );
+        }
+    }
+
+    /// The band's test on the current vector against the f64 sum: motor B's band is
+    /// 0.1929 A; the sum of the components' magnitudes decides, in either quadrant.
+    #[test]
+    fn beyond_band_is_the_sum_of_magnitudes_against_the_band() {
+        let (c, base) = setup(DeadTimeMode::Both);
+        let band = c.design.band_a;
+        assert!((band - 540.0 / (8.0 * 0.025025 * 14000.0)).abs() < 1e-12);
+        for (d, q) in [
+            (0.1, 0.1),
+            (0.09, 0.09),
+            (-0.2, 0.0),
+            (0.0, -0.19),
+            (0.05, -0.15),
+        ] {
+            let i = Dq {
+                d: base.current_pu(d),
+                q: base.current_pu(q),
+            };
+            let want = f64::abs(d) + f64::abs(q) > band;
+            assert_eq!(c.beyond_band(i), want, "({d}, {q}) A against {band} A");
         }
     }
 

@@ -34,9 +34,9 @@ pub enum SpeedLoopForm {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum DeadTimeCurrent {
-    /// The current reference turned to αβ (the default).
+    /// The current reference turned to αβ (the default with the current-model MRAS).
     Reference,
-    /// The measured current.
+    /// The measured current (the default with the back-EMF estimators).
     Measured,
 }
 
@@ -150,8 +150,9 @@ pub struct Control {
     /// dead-time compensation to it (`pmsm_core::DriveDesign::deadtime_calibration`; default
     /// on when the compensation acts on the command and the drive is told a dead time).
     pub deadtime_calibration: Option<bool>,
-    /// The current whose signs the dead-time compensation takes: `"reference"` (the default)
-    /// or `"measured"` (docs/drive.md, "dead-time compensation: which current's sign").
+    /// The current whose signs the dead-time compensation takes: `"reference"` (the default
+    /// with the current-model MRAS) or `"measured"` (the default with the back-EMF
+    /// estimators; docs/drive.md, "dead-time compensation: which current's sign").
     pub deadtime_current: Option<DeadTimeCurrent>,
     /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
     /// default false).
