@@ -649,3 +649,36 @@ fn default_gains_follow_the_formulas() {
         })
     ));
 }
+
+/// `at_limit` against its definition: a speed error that drives the loop into its limit holds
+/// it there (and lowered by `set_limit`, at the new one); within 1/64 of the limit counts, a
+/// smaller output does not.
+#[test]
+fn speed_loop_says_when_it_is_at_its_limit() {
+    let (m, base) = (motor_b(), base_b());
+    let sc = SpeedConfig::new(&m, &base, SpeedDesign::default_for(&base)).unwrap();
+    let mut fixed = SpeedController::new(sc);
+    let i_max = to_f64(sc.i_max());
+    let mut out = fixed.step(pu_from_f64(0.5), Pu::ZERO);
+    for _ in 0..2000 {
+        out = fixed.step(pu_from_f64(0.5), Pu::ZERO);
+    }
+    assert!(out.saturated);
+    assert_eq!(out.iq_ref, sc.i_max());
+    assert!(fixed.at_limit(out.iq_ref));
+    assert!(fixed.at_limit(out.iq_ref.saturating_neg()));
+    for (fraction, want) in [
+        (1.0 - 1.0 / 128.0, true),
+        (1.0 - 1.0 / 32.0, false),
+        (0.5, false),
+    ] {
+        let iq = pu_from_f64(fraction * i_max);
+        assert_eq!(fixed.at_limit(iq), want, "{fraction} of the limit");
+    }
+    let lowered = pu_from_f64(0.5 * i_max);
+    fixed.set_limit(lowered);
+    let out = fixed.step(pu_from_f64(0.5), Pu::ZERO);
+    assert_eq!(out.iq_ref, lowered);
+    assert!(fixed.at_limit(out.iq_ref));
+    assert!(!fixed.at_limit(pu_from_f64(0.45 * i_max)));
+}

@@ -522,3 +522,80 @@ fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
     println!("reference signs: fault {fault:?}");
     assert_eq!(fault.map(|f| f.0), Some("driven_backwards"));
 }
+
+/// Family seed 8 #8: a 540 V surface motor, 2 pole pairs, 64 ms mechanical time constant, the
+/// AO with the defaults, brought back from −half rated speed under 60 % of rated torque that
+/// turns to help the motion mid-ramp.
+const SURFACE_540V_AO: &str = "duration_s = 4.04\n\
+    motor = { name = \"family 8\", pole_pairs = 2, rs_ohm = 6.651622952478391, \
+    ld_h = 0.16376512962727718, lq_h = 0.16376512962727718, flux_wb = 1.1850347822038392, \
+    j_kg_m2 = 0.005750546970894597, b_nm_s = 0.0015811642636608181, \
+    rated_current_a = 2.0557462752514946, rated_speed_rpm = 1097 }\n\
+    [inverter]\nvdc_v = 540\npwm_hz = 9000\ndead_time_s = 0.00000261\nmodel = \"switching\"\n\
+    [control]\nobserver = \"ao\"\nstartup = \"auto\"\ndeadtime_compensation = true\n\
+    [initial]\ntheta_e_deg = 265.701\n\
+    [speed_ref]\nt_s = [0.0, 0.6, 0.727831, 2.527831, 2.783494, 3.283494, 3.539157]\n\
+    rpm = [0.0, 0.0, 548.5, 548.5, -548.5, -548.5, 548.5]\n\
+    [load]\nt_s = [0.0, 1.227831, 1.228831, 1.727831, 1.728831, 2.227831, 2.228831, 2.630097, \
+    2.681229, 3.385759, 3.436892]\n\
+    nm = [0.0, 0.0, 6.201377, 6.201377, 0.0, 0.0, 6.201377, 6.201377, -6.201377, -6.201377, \
+    6.201377]\n";
+
+#[test]
+fn a_rotor_held_back_by_the_current_limit_is_said() {
+    let run = run_scenario(&scenario_text("surface-540v-ao", SURFACE_540V_AO)).unwrap();
+    assert!(first_fault(&run.rows).is_none());
+    // Back from −548 r/min the reference ramps faster than the IP loop at 40 % of the default
+    // bandwidth follows, and then than the current limit (the rated peak, 2.907 A) carries the
+    // rotor against the load. Off the reference by more than 20 % of rated speed (219 r/min),
+    // the drive's estimate is within 5 % of rated of the rotor's speed; every such sample with
+    // the speed loop at its limit is said (`SpeedRefLimit::AtCurrentLimit`), and what is not
+    // said lasts less than the family's 0.2 s of a silent run.
+    let rated = 1097.0;
+    let back = window(&run.rows, 3.283, 3.84);
+    let off: Vec<_> = back
+        .iter()
+        .filter(|r| (r.speed_rpm - r.speed_ref_rpm).abs() > 0.2 * rated)
+        .collect();
+    assert!(off.len() > 1800, "{} samples off", off.len());
+    assert!(
+        off.iter()
+            .all(|r| (r.speed_est_rpm - r.speed_rpm).abs() < 0.05 * rated)
+    );
+    // The limit is 2.0557 A rms · √2 = 2.90726 A.
+    let limited: Vec<_> = off.iter().filter(|r| r.i_q_ref_a.abs() > 2.907).collect();
+    let said = |r: &pmsm_cli::commands::simulate::Row| {
+        r.current_limited_est_rpm
+            .is_some_and(|est| (est - r.speed_rpm).abs() < 0.05 * rated)
+    };
+    assert!(
+        limited.len() > 300,
+        "{} samples at the limit",
+        limited.len()
+    );
+    assert!(limited.iter().all(|r| said(r)));
+    let mut longest = 0.0f64;
+    let mut since: Option<f64> = None;
+    for r in &back {
+        let unsaid = (r.speed_rpm - r.speed_ref_rpm).abs() > 0.2 * rated && !said(r);
+        since = match (unsaid, since) {
+            (true, None) => Some(r.t_s),
+            (true, s) => s,
+            (false, _) => None,
+        };
+        if let Some(t0) = since {
+            longest = longest.max(r.t_s - t0);
+        }
+    }
+    println!(
+        "{} samples off the reference by more than 219 r/min, {} at the current limit and said; \
+         longest stretch off and not said {longest:.3} s",
+        off.len(),
+        limited.len()
+    );
+    assert!(longest < 0.2);
+    // Back at the reference, the limit is no longer said.
+    let steady = window(&run.rows, 3.84, 4.04);
+    assert!(steady.iter().all(|r| r.current_limited_est_rpm.is_none()));
+    assert!(speed_err(&steady) < 0.02);
+}

@@ -188,6 +188,15 @@ impl Format for crate::SpeedRefLimit {
                 pu(requested),
                 pu(used)
             ),
+            crate::SpeedRefLimit::AtCurrentLimit {
+                requested,
+                estimated,
+            } => write!(
+                f,
+                "at_current_limit ({=f32} pu requested, {=f32} pu estimated)",
+                pu(requested),
+                pu(estimated)
+            ),
         }
     }
 }

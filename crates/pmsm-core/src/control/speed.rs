@@ -332,6 +332,14 @@ impl SpeedController {
         };
     }
 
+    /// Whether the output `iq_ref` of the last step is at the limit, within 1/64 of it: a loop
+    /// held against its limit hovers just inside, its proportional action moving with the
+    /// speed's ripple (2.90713 A against 2.90726 on a motor of the random family).
+    pub fn at_limit(&self, iq_ref: Pu) -> bool {
+        let limit = self.limit.to_bits();
+        iq_ref.to_bits().saturating_abs() >= limit - (limit >> 6)
+    }
+
     /// Sets the output's limit to `limit` within `[0, I_max]`; the next step clamps to it.
     pub fn set_limit(&mut self, limit: Pu) {
         self.limit = limit.min(self.config.i_max).max(Pu::ZERO);

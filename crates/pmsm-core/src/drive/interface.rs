@@ -92,14 +92,26 @@ pub enum SpeedRefLimit {
         /// The reference used.
         used: Pu,
     },
+    /// The speed loop gives all the current it may (its current limit, or the room the
+    /// current circle leaves with field weakening): the rotor turns at what that torque
+    /// allows against the load, `estimated` by the drive, not necessarily at `requested`
+    /// (electrical, per unit of `ω_b`). A rotor far from `estimated` is a lost lock, not this.
+    AtCurrentLimit {
+        /// The reference set.
+        requested: Pu,
+        /// The estimated speed the speed loop sees.
+        estimated: Pu,
+    },
 }
 
 impl SpeedRefLimit {
-    /// The reason, for logs: `below_estimator_minimum` or `above_max_speed`.
+    /// The reason, for logs: `below_estimator_minimum`, `above_max_speed` or
+    /// `at_current_limit`.
     pub const fn name(&self) -> &'static str {
         match self {
             SpeedRefLimit::BelowEstimatorMinimum { .. } => "below_estimator_minimum",
             SpeedRefLimit::AboveMaxSpeed { .. } => "above_max_speed",
+            SpeedRefLimit::AtCurrentLimit { .. } => "at_current_limit",
         }
     }
 }

@@ -712,7 +712,9 @@ impl Drive {
 
     /// Whether the closed loop holds another speed than the reference set, and why; `None`
     /// when it runs at the reference. Computed on demand (nothing on the control path): a
-    /// binding or a log asks it after [`Drive::step`].
+    /// binding or a log asks it after [`Drive::step`]. A reference the drive does not take
+    /// (beyond the maximum speed, below the estimator's least) comes first; then, in the
+    /// closed loop, the speed loop's output at its limit.
     pub fn speed_ref_limit(&self) -> Option<SpeedRefLimit> {
         let requested = self.speed_ref;
         let used = self.speed_ref_used();
@@ -720,7 +722,15 @@ impl Drive {
             return Some(SpeedRefLimit::AboveMaxSpeed { requested, used });
         }
         let held = self.run_speed_ref();
-        (held != requested).then_some(SpeedRefLimit::BelowEstimatorMinimum { requested, held })
+        if held != requested {
+            return Some(SpeedRefLimit::BelowEstimatorMinimum { requested, held });
+        }
+        (self.state == DriveState::Run && self.speed.at_limit(self.iq_ref)).then_some(
+            SpeedRefLimit::AtCurrentLimit {
+                requested,
+                estimated: self.speed_filtered,
+            },
+        )
     }
 
     /// The speed reference of the closed loop: a back-EMF estimator cannot run below the

@@ -128,6 +128,9 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
     if let Some(notice) = speed_ref_notice(sc, &result.rows) {
         println!("  {notice}");
     }
+    if let Some(notice) = current_limit_notice(&result.rows) {
+        println!("  {notice}");
+    }
     if let Some(r) = result
         .rows
         .iter()
@@ -187,6 +190,25 @@ pub fn speed_ref_notice(sc: &Scenario, rows: &[Row]) -> Option<String> {
         last.speed_ref_rpm,
         held.abs(),
         held,
+        first.t_s,
+        n as f64 * dt
+    ))
+}
+
+/// When the speed loop gave all the current it may (`pmsm_core::SpeedRefLimit::AtCurrentLimit`):
+/// "at the current limit (at_current_limit) from t = X s, Y s in all", and the largest gap
+/// between the reference and the estimated speed meanwhile.
+pub fn current_limit_notice(rows: &[Row]) -> Option<String> {
+    let first = rows.iter().find(|r| r.current_limited_est_rpm.is_some())?;
+    let limited = rows.iter().filter_map(|r| {
+        r.current_limited_est_rpm
+            .map(|est| (r.speed_ref_rpm - est).abs())
+    });
+    let (n, gap) = limited.fold((0usize, 0.0f64), |(n, g), x| (n + 1, g.max(x)));
+    let dt = rows.get(1).map_or(0.0, |r| r.t_s - rows[0].t_s);
+    Some(format!(
+        "speed loop at the current limit (at_current_limit) from t = {:.3} s, {:.3} s in all; \
+         the estimated speed up to {gap:.0} r/min from the reference meanwhile",
         first.t_s,
         n as f64 * dt
     ))

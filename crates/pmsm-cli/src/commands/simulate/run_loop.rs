@@ -46,6 +46,9 @@ pub struct Row {
     /// In the closed loop with the reference below the estimator's least speed
     /// (`pmsm_core::SpeedRefLimit`): the reference the speed loop holds instead, r/min.
     pub speed_ref_held_rpm: Option<f64>,
+    /// In the closed loop with the speed loop's output at its limit
+    /// (`pmsm_core::SpeedRefLimit::AtCurrentLimit`): the speed the drive estimates, r/min.
+    pub current_limited_est_rpm: Option<f64>,
     /// The tracked R and ψ (Ω, Wb) with `[control] tracking`, else the drive's model's.
     pub model_rs_flux: [f64; 2],
     /// The tracker's status after this sample, with `[control] tracking`.
@@ -252,6 +255,12 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
                 if drive.state() == DriveState::Run =>
             {
                 Some(base.speed_rad_s(held) / p * 60.0 / TAU)
+            }
+            _ => None,
+        },
+        current_limited_est_rpm: match drive.speed_ref_limit() {
+            Some(pmsm_core::SpeedRefLimit::AtCurrentLimit { estimated, .. }) => {
+                Some(base.speed_rad_s(estimated) / p * 60.0 / TAU)
             }
             _ => None,
         },
