@@ -170,14 +170,9 @@ fn print_phases(phases: &[Phase]) {
 /// Y r/min: held at Y" with the last such reference, from the first such sample, and for how
 /// long.
 pub fn speed_ref_notice(sc: &Scenario, rows: &[Row]) -> Option<String> {
-    let first = rows.iter().find(|r| r.speed_ref_held_rpm.is_some())?;
+    let (first, total_s) = extent(rows, |r| r.speed_ref_held_rpm.is_some())?;
     let last = rows.iter().rev().find(|r| r.speed_ref_held_rpm.is_some())?;
     let held = last.speed_ref_held_rpm?;
-    let n = rows
-        .iter()
-        .filter(|r| r.speed_ref_held_rpm.is_some())
-        .count();
-    let dt = rows.get(1).map_or(0.0, |r| r.t_s - rows[0].t_s);
     let name = match sc.control.observer {
         ObserverKind::Nlo => "NLO",
         ObserverKind::Ao => "AO",
@@ -191,26 +186,35 @@ pub fn speed_ref_notice(sc: &Scenario, rows: &[Row]) -> Option<String> {
         held.abs(),
         held,
         first.t_s,
-        n as f64 * dt
+        total_s
     ))
+}
+
+/// The first row where `holds` does and the time it holds in all, s (samples times the
+/// sample period); `None` if it never does.
+fn extent(rows: &[Row], holds: impl Fn(&Row) -> bool) -> Option<(&Row, f64)> {
+    let first = rows.iter().find(|r| holds(r))?;
+    let n = rows.iter().filter(|r| holds(r)).count();
+    let dt = rows.get(1).map_or(0.0, |r| r.t_s - rows[0].t_s);
+    Some((first, n as f64 * dt))
 }
 
 /// When the speed loop gave all the current it may (`pmsm_core::SpeedRefLimit::AtCurrentLimit`):
 /// "at the current limit (at_current_limit) from t = X s, Y s in all", and the largest gap
 /// between the reference and the estimated speed meanwhile.
 pub fn current_limit_notice(rows: &[Row]) -> Option<String> {
-    let first = rows.iter().find(|r| r.current_limited_est_rpm.is_some())?;
-    let limited = rows.iter().filter_map(|r| {
-        r.current_limited_est_rpm
-            .map(|est| (r.speed_ref_rpm - est).abs())
-    });
-    let (n, gap) = limited.fold((0usize, 0.0f64), |(n, g), x| (n + 1, g.max(x)));
-    let dt = rows.get(1).map_or(0.0, |r| r.t_s - rows[0].t_s);
+    let (first, total_s) = extent(rows, |r| r.current_limited_est_rpm.is_some())?;
+    let gap = rows
+        .iter()
+        .filter_map(|r| {
+            r.current_limited_est_rpm
+                .map(|est| (r.speed_ref_rpm - est).abs())
+        })
+        .fold(0.0f64, f64::max);
     Some(format!(
-        "speed loop at the current limit (at_current_limit) from t = {:.3} s, {:.3} s in all; \
-         the estimated speed up to {gap:.0} r/min from the reference meanwhile",
-        first.t_s,
-        n as f64 * dt
+        "speed loop at the current limit (at_current_limit) from t = {:.3} s, {total_s:.3} s in \
+         all; the estimated speed up to {gap:.0} r/min from the reference meanwhile",
+        first.t_s
     ))
 }
 

@@ -231,11 +231,13 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
     let tel = drive.telemetry();
     let s = plant.motor().state();
     let i_true = plant.motor().i_abc();
+    let rpm = |omega_e: pmsm_core::Pu| base.speed_rad_s(omega_e) / p * 60.0 / TAU;
+    let limit = drive.speed_ref_limit();
     Row {
         t_s: t,
         speed_ref_rpm,
         speed_rpm: s.omega_m_rad_s * 60.0 / TAU,
-        speed_est_rpm: base.speed_rad_s(tel.estimate.omega) / p * 60.0 / TAU,
+        speed_est_rpm: rpm(tel.estimate.omega),
         theta_e_rad: wrap(s.theta_e_rad),
         theta_e_est_rad: tel.estimate.theta.to_rad(),
         i_dq_a: plant.motor().i_dq(),
@@ -250,17 +252,17 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
         state: drive.state(),
         i_peak_a: i_true.iter().fold(0.0f64, |a, x| a.max(x.abs())),
         health: pmsm_core::to_f64(drive.health()),
-        speed_ref_held_rpm: match drive.speed_ref_limit() {
+        speed_ref_held_rpm: match limit {
             Some(pmsm_core::SpeedRefLimit::BelowEstimatorMinimum { held, .. })
                 if drive.state() == DriveState::Run =>
             {
-                Some(base.speed_rad_s(held) / p * 60.0 / TAU)
+                Some(rpm(held))
             }
             _ => None,
         },
-        current_limited_est_rpm: match drive.speed_ref_limit() {
+        current_limited_est_rpm: match limit {
             Some(pmsm_core::SpeedRefLimit::AtCurrentLimit { estimated, .. }) => {
-                Some(base.speed_rad_s(estimated) / p * 60.0 / TAU)
+                Some(rpm(estimated))
             }
             _ => None,
         },
