@@ -231,6 +231,11 @@ impl DeadTimeConfig {
         self.k_bus.apply(vdc).saturating_add(self.v_const)
     }
 
+    /// `i_band` in [`Pu`] bits, rounded up.
+    pub(crate) fn band_bits(&self) -> u32 {
+        self.band_bits.unsigned_abs()
+    }
+
     /// Whether the current vector `i` lies beyond the band, `|i_d| + |i_q| > i_band` (the sum
     /// is at least the vector's length): where [`CurrentSource::Measured`] takes the measured
     /// current's signs (docs/drive.md, "dead-time compensation: which current's sign").
@@ -340,6 +345,14 @@ pub(crate) struct DeadTimeBus {
     third: i32,
     /// `V_dead/√3`, Q8.26.
     inv_sqrt3: i32,
+}
+
+impl DeadTimeBus {
+    /// `V_dead` of the last bus reading, [`Pu`] bits (`3/4` of `V_dead/3` in Q8.26; zero
+    /// before the first).
+    pub(crate) fn v_dead_bits(&self) -> u32 {
+        (self.third - (self.third >> 2)).unsigned_abs()
+    }
 }
 
 /// One in Q4.28 (the format of the signs).

@@ -150,6 +150,11 @@ pub struct Control {
     /// dead-time compensation to it (`pmsm_core::DriveDesign::deadtime_calibration`; default
     /// on when the compensation acts on the command and the drive is told a dead time).
     pub deadtime_calibration: Option<bool>,
+    /// Hold the current-model MRAS's adaptation through a phase current's zero crossing at
+    /// low speed and light load (`pmsm_core::DriveDesign::zero_crossing_hold`, docs/drive.md
+    /// "Zero crossings at low speed"; default on; it acts only while the dead-time
+    /// compensation does).
+    pub zero_crossing_hold: Option<bool>,
     /// The current whose signs the dead-time compensation takes: `"reference"` (the default
     /// with the current-model MRAS) or `"measured"` (the default with the back-EMF
     /// estimators; docs/drive.md, "dead-time compensation: which current's sign").

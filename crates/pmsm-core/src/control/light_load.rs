@@ -178,6 +178,14 @@ pub struct LightLoad {
     id_ref: Pu,
 }
 
+impl LightLoadConfig {
+    /// Updates of four time constants of the `|i_q*|` filter (`4·2^shift`).
+    #[inline(always)]
+    pub(crate) fn settled_updates(&self) -> u32 {
+        4 << self.shift
+    }
+}
+
 impl LightLoad {
     /// Starts from `|iq|` (the q reference handed over to the closed loop) at the speed
     /// `omega`.

@@ -249,6 +249,11 @@ pub struct DriveDesign {
     /// (docs/drive.md, "dead-time calibration"; 40 ms); it runs only when the compensation acts
     /// on the command. Default: on for the current-model MRAS and an inverter with a dead time.
     pub deadtime_calibration: bool,
+    /// Hold the current-model MRAS's adaptation through a phase current's zero crossing at
+    /// low speed and light load, where the inverter's distortion there is as large as the EMF
+    /// (docs/drive.md, "Zero crossings at low speed"). Default on; it acts only while the
+    /// dead-time compensation does, and the other estimators ignore it.
+    pub zero_crossing_hold: bool,
 }
 
 /// Longest PWM update delay the drive compensates, control samples.
@@ -318,6 +323,7 @@ impl DriveDesign {
             // its error; the back-EMF estimators hand over at a tenth of rated speed, where
             // the EMF dwarfs it. (`DriveConfig::new` runs it only with a compensated command.)
             deadtime_calibration: !estimator.needs_open_loop_start() && inverter.dead_time_s > 0.0,
+            zero_crossing_hold: true,
             // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
             // oscillate at no load; a d current switched in at their handover disturbed an NLO
             // start of the random family.

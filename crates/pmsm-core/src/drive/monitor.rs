@@ -202,6 +202,12 @@ pub(crate) struct Signals<'a> {
 }
 
 impl Monitor {
+    /// The phase currents of the last stuck-channel check (slot 1).
+    pub(crate) fn phases(&self) -> Abc {
+        let [a, b, c] = self.last_bits.map(Pu::from_bits);
+        Abc { a, b, c }
+    }
+
     /// Restart (a new start).
     pub fn reset(&mut self) {
         *self = Self::default();

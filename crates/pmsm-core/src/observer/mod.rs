@@ -272,6 +272,18 @@ impl AnyEstimator {
             _ => {}
         }
     }
+
+    /// The current-model MRAS holds its adaptation over the next `updates` updates
+    /// ([`MrasCurrent::hold`]); the others have nothing to hold.
+    #[inline(always)]
+    pub(crate) fn hold(&mut self, updates: u8) {
+        match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+            AnyEstimator::MrasCurrent(e) => e.hold(updates),
+            #[allow(unreachable_patterns)] // the only variant with `select-estimators`
+            _ => {}
+        }
+    }
 }
 
 impl Estimator for AnyEstimator {

@@ -174,6 +174,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     if let Some(on) = c.deadtime_calibration {
         design.deadtime_calibration = on;
     }
+    if let Some(on) = c.zero_crossing_hold {
+        design.zero_crossing_hold = on;
+    }
     if let Some(source) = c.deadtime_current {
         design.deadtime.source = match source {
             DeadTimeCurrent::Reference => CurrentSource::Reference,

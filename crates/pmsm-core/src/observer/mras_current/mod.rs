@@ -121,6 +121,15 @@
 //! learned before, so a reversal under a load that does not reverse with it keeps its lock.
 //! `K_L = 0` gives the plain MRAS of Khlaief, Boussak, Gossa (2012).
 //!
+//! # Held
+//!
+//! [`MrasCurrent::hold`] suspends the adaptation for a number of updates: each takes the model
+//! to the measured current (`î = i`, so `ε = 0` and `ξ = 0`) and moves the speed by the
+//! mechanical model alone, and the update after them seeds the model afresh as the first
+//! after a reset does. The drive holds it through a phase current's zero crossing at low speed
+//! and light load, where the inverter's distortion, which no compensation follows there, is as
+//! large as the EMF the adaptation reads (docs/drive.md, "zero crossings at low speed").
+//!
 //! # Formats
 //!
 //! Every per-sample product has a compile-time binary point ([`Coef`]): one multiply, a

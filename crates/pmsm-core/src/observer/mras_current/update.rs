@@ -31,8 +31,10 @@ pub struct MrasCurrent {
     pub(super) xi: Pu,
     /// Load-current estimate of the mechanical model, per unit of `I_b`.
     pub(super) i_load: Pu,
-    /// The next update seeds the model with the measured current (after a reset).
-    pub(super) seed: bool,
+    /// Updates left that seed the model with the measured current and do not adapt: one
+    /// after a reset, more through a zero crossing ([`MrasCurrent::hold`]); all but the last
+    /// move the speed by the mechanical model.
+    pub(super) seed: u8,
     pub(super) last: Estimate,
 }
 
@@ -50,7 +52,7 @@ impl MrasCurrent {
             integ: 0,
             xi: Pu::ZERO,
             i_load: Pu::ZERO,
-            seed: true,
+            seed: 1,
             last: Estimate::default(),
         };
         s.reset(Angle::ZERO, Pu::ZERO);
@@ -61,7 +63,19 @@ impl MrasCurrent {
     /// (module docs, "Low-speed schedule"). Off the update's path: the drive calls it every
     /// eighth sample with the estimated speed.
     pub fn schedule(&mut self, omega: Pu) {
-        self.config.gains = self.config.gains_at(omega);
+        // Off (no level above the design's), there is nothing to pick.
+        if self.config.top != 0 {
+            self.config.gains = self.config.gains_at(omega);
+        }
+    }
+
+    /// Holds the adaptation over the next `updates` updates (at most 254): each takes the
+    /// model to the measured current, leaves `ξ` at zero and moves the speed by the mechanical
+    /// model alone; the update after them starts afresh as the first after a reset does. The
+    /// drive calls it through a phase current's zero crossing at low speed and light load
+    /// (docs/drive.md, "zero crossings at low speed").
+    pub fn hold(&mut self, updates: u8) {
+        self.seed = updates.saturating_add(1);
     }
 
     /// The configuration.
@@ -238,41 +252,48 @@ impl Estimator for MrasCurrent {
         let c = &self.config;
         let i = park_in(input.i, sc);
         self.i_dq = i;
-        if self.seed {
-            // After a reset the model starts from the measured current: no error to adapt on.
-            self.seed = false;
+        let xi = if self.seed == 0 {
+            // Model, eq. 15: the Strang step (half R–L step, exact rotation, half R–L step)
+            // composed into one affine map (module docs, "Discretisation"): the weights act in
+            // the frame at θ̂_{k−1}, the rotation by Δ takes them to the frame at θ̂_k.
+            let v = park_in(input.v, sc_prev);
+            let ih = self.i_hat;
+            let xd = model_mac(c.xd_i, ih.d, c.xd_v, v.d, c.off_d_acc);
+            let xq = model_mac(c.xq_i, ih.q, c.xq_v, v.q, 0);
+            let yq = model_mac(c.yq_i, ih.q, c.yq_v, v.q, 0);
+            let yd = model_mac(c.yd_i, ih.d, c.yd_v, v.d, c.off_q_acc);
+            let r = advance(sc_prev, sc);
+            let (rc, rs) = (r.cos.to_bits(), r.sin.to_bits());
+            let i_hat = Dq {
+                d: Pu::from_bits(dot30(xd.to_bits(), rc, xq.to_bits(), rs)).saturating_sub(c.off_d),
+                q: Pu::from_bits(dot30(yq.to_bits(), rc, yd.to_bits(), neg(r.sin))),
+            };
+            self.i_hat = i_hat;
+            // ε = i − î (eq. 16); ξ̃ = (L_q/L_d) ξ = ρ² i_q ε_d − (i_d + ψ/L_d) ε_q (eq. 21–22
+            // × L_q/L_d: one weight fewer). Each product is below 2^62 in magnitude; halved, their
+            // difference meets the rounding's contract (the dropped bit is 2^-25 LSB).
+            let e_d = i.d.saturating_sub(i_hat.d);
+            let e_q = i.q.saturating_sub(i_hat.q);
+            let w_d = coef_mul(c.rho2, i.q);
+            let w_q = i.d.saturating_add(c.psi_ld);
+            let acc = (wide(w_d.to_bits(), e_d.to_bits()) >> 1)
+                - (wide(w_q.to_bits(), e_q.to_bits()) >> 1);
+            Pu::from_bits(round_shift_sat(acc, PU_FRAC - 1))
+        } else {
+            // After a reset, or held, the model starts from the measured current: no error to
+            // adapt on.
+            self.seed -= 1;
             self.i_hat = i;
-            self.xi = Pu::ZERO;
-            self.last = self.make_estimate(omega);
-            self.prepare_next(omega);
-            return self.last;
-        }
-        // Model, eq. 15: the Strang step (half R–L step, exact rotation, half R–L step)
-        // composed into one affine map (module docs, "Discretisation"): the weights act in
-        // the frame at θ̂_{k−1}, the rotation by Δ takes them to the frame at θ̂_k.
-        let v = park_in(input.v, sc_prev);
-        let ih = self.i_hat;
-        let xd = model_mac(c.xd_i, ih.d, c.xd_v, v.d, c.off_d_acc);
-        let xq = model_mac(c.xq_i, ih.q, c.xq_v, v.q, 0);
-        let yq = model_mac(c.yq_i, ih.q, c.yq_v, v.q, 0);
-        let yd = model_mac(c.yd_i, ih.d, c.yd_v, v.d, c.off_q_acc);
-        let r = advance(sc_prev, sc);
-        let (rc, rs) = (r.cos.to_bits(), r.sin.to_bits());
-        let i_hat = Dq {
-            d: Pu::from_bits(dot30(xd.to_bits(), rc, xq.to_bits(), rs)).saturating_sub(c.off_d),
-            q: Pu::from_bits(dot30(yq.to_bits(), rc, yd.to_bits(), neg(r.sin))),
+            if self.seed == 0 {
+                // The last seeded update (a reset's) keeps the speed.
+                self.xi = Pu::ZERO;
+                self.last = self.make_estimate(omega);
+                self.prepare_next(omega);
+                return self.last;
+            }
+            // Those of a hold before it: the speed follows the mechanical model alone.
+            Pu::ZERO
         };
-        self.i_hat = i_hat;
-        // ε = i − î (eq. 16); ξ̃ = (L_q/L_d) ξ = ρ² i_q ε_d − (i_d + ψ/L_d) ε_q (eq. 21–22
-        // × L_q/L_d: one weight fewer). Each product is below 2^62 in magnitude; halved, their
-        // difference meets the rounding's contract (the dropped bit is 2^-25 LSB).
-        let e_d = i.d.saturating_sub(i_hat.d);
-        let e_q = i.q.saturating_sub(i_hat.q);
-        let w_d = coef_mul(c.rho2, i.q);
-        let w_q = i.d.saturating_add(c.psi_ld);
-        let acc =
-            (wide(w_d.to_bits(), e_d.to_bits()) >> 1) - (wide(w_q.to_bits(), e_q.to_bits()) >> 1);
-        let xi = Pu::from_bits(round_shift_sat(acc, PU_FRAC - 1));
         self.xi = xi;
         // Mechanical model: the torque current less the load estimate accelerates the rotor;
         // the load estimate moves against ξ (module docs, "Through zero speed").
@@ -327,7 +348,7 @@ impl Estimator for MrasCurrent {
         self.xi = Pu::ZERO;
         self.i_load = Pu::ZERO;
         self.config.gains = self.config.gains_at(omega);
-        self.seed = true;
+        self.seed = 1;
         self.last = self.make_estimate(omega);
         self.prepare_next(omega);
     }
