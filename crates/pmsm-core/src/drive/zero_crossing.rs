@@ -47,7 +47,7 @@ pub const FAR_BANDS: f64 = 4.0;
 /// The band multiple below which the filtered `|i_q*|` is light load.
 pub const LIGHT_BANDS: f64 = 1.5;
 
-// `holds` computes both as `band + band/2`.
+// `ZeroCrossing::holds` computes them as `band + band/2` and `band << 2`.
 const _: () = assert!(NEAR_BANDS == 1.5 && LIGHT_BANDS == 1.5 && FAR_BANDS == 4.0);
 
 /// The hold's state: how many checks in a row the load has been light.
