@@ -115,6 +115,12 @@ impl LightLoadConfig {
         self.current
     }
 
+    /// Updates of four time constants of the `|i_q*|` filter (`4·2^shift`).
+    #[inline(always)]
+    pub(crate) fn settled_updates(&self) -> u32 {
+        4 << self.shift
+    }
+
     /// The configuration for an inverter whose `V_dead` is `scale` (Q4.28) times the one it
     /// was designed for (the dead-time calibration's): `I_LL` and `ω_f` raised in proportion
     /// when `scale` > 1 (the error left to average out grows with `V_dead`; motor B with 3 µs
@@ -176,14 +182,6 @@ fn magnitude(x: Pu) -> i32 {
 pub struct LightLoad {
     level: Pu,
     id_ref: Pu,
-}
-
-impl LightLoadConfig {
-    /// Updates of four time constants of the `|i_q*|` filter (`4·2^shift`).
-    #[inline(always)]
-    pub(crate) fn settled_updates(&self) -> u32 {
-        4 << self.shift
-    }
 }
 
 impl LightLoad {

@@ -432,10 +432,10 @@ impl Drive {
     /// for stuck channels), before the update: the current-model MRAS's low-speed gain
     /// schedule, and its hold through a phase current's zero crossing at low speed and light
     /// load over the next eight updates ([`zero_crossing`]), from the phase currents the
-    /// monitor read on this slot eight samples before (taking this sample's input instead cost
-    /// every sample of the Cortex-M0 some 45 instructions). Out of line except on ARMv6-M:
-    /// out of line, the board's image is 300 bytes smaller; on the Cortex-M0 the call cost
-    /// every sample some 45 instructions (measured with `scripts/pil.sh`).
+    /// monitor read on this slot eight samples before. Measured with `scripts/pil.sh`: taking
+    /// this sample's input currents instead, or calling this out of line on the Cortex-M0,
+    /// each cost every sample of the Cortex-M0 some 45 instructions; out of line elsewhere,
+    /// the board's image is 300 bytes smaller.
     #[cfg_attr(
         all(target_arch = "arm", not(target_has_atomic = "32")),
         inline(always)
