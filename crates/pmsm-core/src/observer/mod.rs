@@ -276,6 +276,7 @@ impl AnyEstimator {
     /// The current-model MRAS holds its adaptation over the next `updates` updates
     /// ([`MrasCurrent::hold`]); the others have nothing to hold.
     #[inline(always)]
+    #[cfg_attr(feature = "select-estimators", allow(unused_variables))]
     pub(crate) fn hold(&mut self, updates: u8) {
         match self {
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]

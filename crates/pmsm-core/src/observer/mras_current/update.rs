@@ -93,12 +93,14 @@ impl MrasCurrent {
     /// bit what `estimate().theta.sin_cos()` gives) and the measured current of the last
     /// update rotated into it (bit for bit `park(i, sin_cos(θ̂))`; zero after a reset). The
     /// drive reuses both instead of computing them again.
+    #[cfg_attr(feature = "select-estimators", allow(dead_code))] // the drive's, with the MRAS
     pub(crate) fn frame(&self) -> (SinCos, Dq) {
         (self.sc, self.i_dq)
     }
 
     /// sin/cos of the next update's frame angle, `θ̂ + ω̂ T_s` with the last estimate: the
     /// rotor frame at the end of the coming PWM period.
+    #[cfg_attr(feature = "select-estimators", allow(dead_code))] // the drive's, with the MRAS
     pub(crate) fn next_frame(&self) -> SinCos {
         self.sc_next
     }
