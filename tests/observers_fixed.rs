@@ -199,13 +199,19 @@ fn gains_that_break_the_discrete_observer_are_rejected() {
     let c = MrasEmfConfig::default_for(&m, &slow, 1000.0).unwrap();
     assert!((c.constants[2] - wb_ts).abs() < 1e-12, "{:?}", c.constants);
     // Where the paper's c3 is stable it is the default's; c2 puts the adaptation's slow root
-    // ψ² c2 c3 at 0.01/T_s, and c1 keeps the paper's ratio to c2.
+    // ψ² c2 c3 at MRAS_EMF_ADAPTATION_BANDWIDTH_TS/T_s (0.025/T_s), and c1 keeps the paper's
+    // ratio to c2.
     let c = MrasEmfConfig::default_for(&m, &b, 1000.0).unwrap();
     let [c1, c2, c3] = c.constants;
     let paper = pmsm_core::MRAS_EMF_PAPER_CONSTANTS;
     assert!((c3 - paper[2]).abs() <= 1e-12, "{:?}", c.constants);
     let slow_root = m.flux_wb * m.flux_wb * c2 * c3;
-    assert!((slow_root * b.sample_s - 0.01).abs() < 1e-9, "{slow_root}");
+    let root_ts = pmsm_core::MRAS_EMF_ADAPTATION_BANDWIDTH_TS;
+    assert!((root_ts - 0.025).abs() < 1e-12);
+    assert!(
+        (slow_root * b.sample_s - root_ts).abs() < 1e-9,
+        "{slow_root}"
+    );
     assert!((c1 / c2 - paper[0] / paper[1]).abs() < 1e-12 * paper[0] / paper[1]);
     let mut bad = m;
     bad.flux_wb = f64::NAN;
@@ -287,4 +293,61 @@ fn lag_compensated_ao_removes_eq_13_14() {
         assert!(angle.abs() <= 0.015 * et.abs(), "{angle} {et}");
         assert!(speed.abs() <= 0.015 * ew.abs(), "{speed} {ew}");
     }
+}
+
+/// The MRAS with the normalised integral (`MrasEmfConfig::normalised_integral`, the drive's law
+/// with the drive's constants for motor A) against its f64 reference through an acceleration,
+/// a steady stretch and a deceleration; and, in f64, both laws through that deceleration
+/// (120 to 24 rad/s in 50 ms): the paper's eq. 29 divides the integral by a shrinking `ω̂_AO`,
+/// which pushes the estimate up by `ω̂ |ω̇|/|ω|` while the rotor slows, and it lags further.
+#[test]
+fn mras_normalised_integral_matches_f64_and_follows_a_deceleration() {
+    let m = motor_a();
+    let (fs, g) = (20e3, 1000.0);
+    let b = base(&m, 300.0, fs);
+    let ts = 1.0 / fs;
+    let c = MrasEmfConfig::default_for(&m, &b, g).unwrap().constants;
+    let p = Profile::new(&[
+        (0.1, 12.0),
+        (0.4, 120.0),
+        (0.6, 120.0),
+        (0.65, 24.0),
+        (0.8, 24.0),
+    ]);
+    let s = Trajectory::new(m, p).samples(ts, (0.8 * fs) as usize);
+    let fixed = run_fixed(
+        &mut MrasEmf::new(
+            MrasEmfConfig::new(&m, &b, g, c)
+                .unwrap()
+                .normalised_integral(&b)
+                .unwrap(),
+        ),
+        &b,
+        &s,
+    );
+    let mut rn = RefMras::new(&m, ts, g, b.omega_e_rad_s, c).normalised();
+    let normalised = run_ref(|i, v| rn.update(i, v), &s);
+    let mut rp = RefMras::new(&m, ts, g, b.omega_e_rad_s, c);
+    let paper = run_ref(|i, v| rp.update(i, v), &s);
+    let rated_e = 3.0 * 120.0;
+    let (mut angle, mut speed) = (0.0f64, 0.0f64);
+    for k in (0.15 * fs) as usize..s.len() {
+        let (x, y) = (&fixed[k], &normalised[k]);
+        angle = angle.max(pmsm_tests::trajectory::wrap(x.theta_rad - y.theta_rad).abs());
+        speed = speed.max((x.omega_rad_s - y.omega_rad_s).abs() / rated_e);
+    }
+    // Worst speed lag behind the rotor through the deceleration and 20 ms after it.
+    let lag = |e: &[Est]| {
+        (((0.6 * fs) as usize)..((0.67 * fs) as usize))
+            .map(|k| e[k].omega_rad_s - s[k].omega_e_rad_s)
+            .fold(0.0f64, f64::max)
+    };
+    let (lag_n, lag_p) = (lag(&normalised), lag(&paper));
+    println!(
+        "fixed against f64: {:.4}° {:.4} % of rated; lag through the deceleration (rad/s, electrical): normalised {lag_n:.2}, eq. 29 {lag_p:.2}",
+        angle.to_degrees(),
+        100.0 * speed
+    );
+    assert!(angle.to_degrees() < 0.1 && speed < 0.005, "{angle} {speed}");
+    assert!(lag_n < 0.7 * lag_p, "{lag_n} {lag_p}");
 }

@@ -218,12 +218,15 @@ pub struct RefMras {
     model: [f64; 2],
     integral: f64,
     last_omega: f64,
+    /// Integrates `ε/ω̂_AO` (`MrasEmfConfig::normalised_integral`) instead of `ε`.
+    normalised: bool,
 }
 
 impl RefMras {
     /// MRAS with constants `c` on an AO of gain `g`.
     pub fn new(m: &MotorParams, ts: f64, g: f64, omega_b: f64, c: [f64; 3]) -> Self {
         Self {
+            normalised: false,
             ao: RefAo::new(m, ts, g, omega_b),
             c,
             ts,
@@ -232,6 +235,12 @@ impl RefMras {
             integral: 0.0,
             last_omega: 0.0,
         }
+    }
+
+    /// The same with `ε/ω̂_AO` integrated (`MrasEmfConfig::normalised_integral`).
+    pub fn normalised(mut self) -> Self {
+        self.normalised = true;
+        self
     }
 
     /// One sample.
@@ -249,8 +258,15 @@ impl RefMras {
         self.model = [t[0] + pull * (r[0] - t[0]), t[1] + pull * (r[1] - t[1])];
         let d = [r[0] - self.model[0], r[1] - self.model[1]];
         let eps = d[1] * self.model[0] - d[0] * self.model[1];
-        self.integral += eps * self.ts;
-        let w = (self.c[0] * eps + self.c[1] * self.integral) / w_ao;
+        let w = if self.normalised {
+            // ω̂ = c1 ε/ω̂_AO + c2 ∫ ε/ω̂_AO dt.
+            self.integral += self.c[1] * eps / w_ao * self.ts;
+            self.c[0] * eps / w_ao + self.integral
+        } else {
+            // ω̂ = (c1 ε + c2 ∫ ε dt)/ω̂_AO (Solsona, Valla, Muravchik (2000) eq. 29).
+            self.integral += eps * self.ts;
+            (self.c[0] * eps + self.c[1] * self.integral) / w_ao
+        };
         self.last_omega = w;
         let phi = self.model[1].atan2(self.model[0]);
         Est {

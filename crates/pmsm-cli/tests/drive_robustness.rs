@@ -523,6 +523,29 @@ fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
     assert_eq!(fault.map(|f| f.0), Some("driven_backwards"));
 }
 
+/// The MRAS on the EMF through the same reversal: its estimate used to lag the rotor as the
+/// current limit decelerated it, the open-loop reversal then began at a speed the rotor no
+/// longer had, and the load drove the rotor backwards (`driven_backwards` at 3.059 s). With its
+/// integral taken of `ε/ω̂_AO` and its adaptation at `0.025/T_s` (docs/solsona2000.md §5) it
+/// reverses and holds.
+#[test]
+fn the_mras_on_the_emf_reverses_that_motor_under_load() {
+    let text = SURFACE_320V_NLO.replace("observer = \"nlo\"", "observer = \"mras-emf\"");
+    let run = run_scenario(&scenario_text("surface-320v-mras-emf", &text)).unwrap();
+    let fault = first_fault(&run.rows).map(|r| (r.fault(), r.t_s));
+    let reversed = window(&run.rows, 3.3, 3.6);
+    let back = window(&run.rows, 4.3, 4.6);
+    println!(
+        "MRAS on the EMF: fault {fault:?}; reversed under load {:.4} rad rms, speed error {:.3} %; back {:.4} rad rms",
+        rms_angle(&reversed),
+        100.0 * speed_err(&reversed),
+        rms_angle(&back)
+    );
+    assert!(fault.is_none());
+    assert!(rms_angle(&reversed) < 0.02 && rms_angle(&back) < 0.02);
+    assert!(speed_err(&reversed) < 0.01);
+}
+
 /// Family seed 8 #8: a 540 V surface motor, 2 pole pairs, 64 ms mechanical time constant, the
 /// AO with the defaults, brought back from −half rated speed under 60 % of rated torque that
 /// turns to help the motion mid-ramp.

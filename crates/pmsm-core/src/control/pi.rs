@@ -76,31 +76,47 @@ const I_SHIFT: u32 = KI_FRAC;
 /// `|4 k_t excess| ≤ 2⁶¹`, so the increment cannot overflow.
 const EXCESS_BOUND: i32 = 1 << 29;
 
-/// Largest value a `Coef<F>` holds: `(2³¹ − 1) 2^−F`.
-pub(crate) fn coef_max<const F: u32>() -> f64 {
-    libm::ldexp(i32::MAX as f64, -(F as i32))
+/// `value` (per unit) as a `Coef<F>`: zero (when `zero_ok`) or within `[min, max]`, `max`
+/// at most the largest value a `Coef<F>` holds, `(2³¹ − 1) 2^−F`; the error reports
+/// `value · si_per_pu` and the range in the same (SI) unit.
+pub(crate) fn coef_in<const F: u32>(
+    key: &'static str,
+    value: f64,
+    range: (f64, f64),
+    zero_ok: bool,
+    si_per_pu: f64,
+) -> Result<Coef<F>, ConfigError> {
+    coef_bits_in(key, value, range, zero_ok, si_per_pu, F).map(Coef::from_bits)
 }
 
-/// `value` (per unit) as a `Coef<F>`: zero (when `zero_ok`) or within `[min, max]`, `max`
-/// at most [`coef_max`]; the error reports `value · si_per_pu` and the range in the same (SI)
-/// unit.
-pub(crate) fn coef_in<const F: u32>(
+/// [`coef_in`] at the binary point `frac`, as bits. One copy for every format: generic, the
+/// board's image carried one per format (1.4 kB). Inlined on ARMv6-M, where the processor-in-
+/// the-loop harness designs its drives on a 16 KiB stack that an out-of-line call's frame
+/// overflowed.
+#[cfg_attr(target_has_atomic = "ptr", inline(never))]
+#[cfg_attr(not(target_has_atomic = "ptr"), inline(always))]
+fn coef_bits_in(
     key: &'static str,
     value: f64,
     (min, max): (f64, f64),
     zero_ok: bool,
     si_per_pu: f64,
-) -> Result<Coef<F>, ConfigError> {
-    let max = max.min(coef_max::<F>());
+    frac: u32,
+) -> Result<i32, ConfigError> {
+    // The largest value a Coef<frac> holds.
+    let max = max.min(libm::ldexp(i32::MAX as f64, -(frac as i32)));
     let ok = value.is_finite() && ((zero_ok && value == 0.0) || (min..=max).contains(&value));
-    match Coef::<F>::new(value) {
-        Some(c) if ok => Ok(c),
-        _ => Err(ConfigError::Gain {
+    // As `Coef::new`: the nearest coefficient, within the i32 range.
+    let m = libm::round(libm::ldexp(value, frac as i32));
+    if ok && (-2_147_483_648.0..2_147_483_648.0).contains(&m) {
+        Ok(m as i32)
+    } else {
+        Err(ConfigError::Gain {
             key,
             value: value * si_per_pu,
             min: if zero_ok { 0.0 } else { min * si_per_pu },
             max: max * si_per_pu,
-        }),
+        })
     }
 }
 
