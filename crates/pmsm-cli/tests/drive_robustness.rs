@@ -512,7 +512,9 @@ fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
     assert!(speed_err(&reversed) < 0.01);
 
     // The reference's signs: through the open-loop reversal the current leaves its reference
-    // and the NLO turns to the mirror angle; the load drives the rotor backwards.
+    // and the NLO turns to the mirror angle; the reversal's handover check trips (before the
+    // reversal held its new direction, the estimate turned with the rotor, which the load
+    // drove backwards: `driven_backwards` at the same instant).
     let text = SURFACE_320V_NLO.replace(
         "deadtime_compensation = true\n",
         "deadtime_compensation = true\ndeadtime_current = \"reference\"\n",
@@ -520,7 +522,7 @@ fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
     let reference = run_scenario(&scenario_text("surface-320v-nlo-reference", &text)).unwrap();
     let fault = first_fault(&reference.rows).map(|r| (r.fault(), r.t_s));
     println!("reference signs: fault {fault:?}");
-    assert_eq!(fault.map(|f| f.0), Some("driven_backwards"));
+    assert_eq!(fault.map(|f| f.0), Some("handover"));
 }
 
 /// The MRAS on the EMF through the same reversal: its estimate used to lag the rotor as the
@@ -544,6 +546,51 @@ fn the_mras_on_the_emf_reverses_that_motor_under_load() {
     assert!(fault.is_none());
     assert!(rms_angle(&reversed) < 0.02 && rms_angle(&back) < 0.02);
     assert!(speed_err(&reversed) < 0.01);
+}
+
+/// Family seed 12 #23: a 540 V surface motor, 2 pole pairs, 39 ms mechanical time constant,
+/// the MRAS on the EMF with the defaults: the family's manoeuvre, reversed under 60 % of rated
+/// torque that opposes the motion and changes sign mid-ramp.
+const SURFACE_540V_MRAS_EMF: &str = "duration_s = 3.792512\n\
+    motor = { name = \"family 23\", pole_pairs = 2, rs_ohm = 2.954297424029833, \
+    ld_h = 0.010055611039489567, lq_h = 0.010055611039489567, flux_wb = 0.38308319289498555, \
+    j_kg_m2 = 0.0015907780792747878, b_nm_s = 0.000898439088830342, \
+    rated_current_a = 8.463205640259869, rated_speed_rpm = 3241 }\n\
+    [inverter]\nvdc_v = 540\npwm_hz = 12000\ndead_time_s = 0.00000227\nmodel = \"switching\"\n\
+    [control]\nobserver = \"mras-emf\"\nstartup = \"auto\"\ndeadtime_compensation = true\n\
+    [initial]\ntheta_e_deg = 126.222\n\
+    [speed_ref]\nt_s = [0.0, 0.6, 0.678502, 2.478502, 2.635507, 3.135507, 3.292512]\n\
+    rpm = [0.0, 0.0, 1620.5, 1620.5, -1620.5, -1620.5, 1620.5]\n\
+    [load]\nt_s = [0.0, 1.178502, 1.179502, 1.678502, 1.679502, 2.178502, 2.179502, 2.541304, \
+    2.572705, 3.198309, 3.22971]\n\
+    nm = [0.0, 0.0, 8.253069, 8.253069, 0.0, 0.0, 8.253069, 8.253069, -8.253069, -8.253069, \
+    8.253069]\n";
+
+/// The open-loop reversal restarts the estimator at zero speed and holds the new direction
+/// until its handover, as the start does. Without the hold the AO inside the MRAS, restarted
+/// 0.46 rad off the rotor's angle, saw its EMF turn the old way while it converged and took
+/// that direction: the estimate turned one way, the rotor the other, and the load drove it
+/// backwards (`driven_backwards` at 2.706 s).
+#[test]
+fn a_reversal_holds_the_new_direction_until_its_handover() {
+    let run = run_scenario(&scenario_text(
+        "surface-540v-mras-emf",
+        SURFACE_540V_MRAS_EMF,
+    ))
+    .unwrap();
+    let fault = first_fault(&run.rows).map(|r| (r.fault(), r.t_s));
+    let reversed = window(&run.rows, 2.9355, 3.1355);
+    let back = window(&run.rows, 3.5925, 3.7925);
+    println!(
+        "fault {fault:?}; reversed under load {:.4} rad rms, speed error {:.3} %; back {:.4} rad rms, {:.3} %",
+        rms_angle(&reversed),
+        100.0 * speed_err(&reversed),
+        rms_angle(&back),
+        100.0 * speed_err(&back)
+    );
+    assert!(fault.is_none());
+    assert!(rms_angle(&reversed) < 0.01 && rms_angle(&back) < 0.01);
+    assert!(speed_err(&reversed) < 0.02 && speed_err(&back) < 0.02);
 }
 
 /// Family seed 8 #8: a 540 V surface motor, 2 pole pairs, 64 ms mechanical time constant, the

@@ -596,6 +596,8 @@ impl Drive {
         let (theta, omega, i_ref) = self.open_loop.advance(&self.config);
         if let Some((theta, omega)) = self.open_loop.restart_angle(&self.config) {
             self.estimator.reset(theta, omega);
+            // As at the start: the new direction is held until the handover.
+            self.estimator.hold_direction(Some(omega > Pu::ZERO));
         }
         if self.open_loop.at_handover(&self.config) {
             let iq = match self.open_loop.handover(estimate, &self.config) {
