@@ -89,10 +89,8 @@ pub(crate) fn coef_in<const F: u32>(
     coef_bits_in(key, value, range, zero_ok, si_per_pu, F).map(Coef::from_bits)
 }
 
-/// [`coef_in`] at the binary point `frac`, as bits. One copy for every format: generic, the
-/// board's image carried one per format (1.4 kB). Inlined on ARMv6-M, where the processor-in-
-/// the-loop harness designs its drives on a 16 KiB stack that an out-of-line call's frame
-/// overflowed.
+/// [`coef_in`] at the binary point `frac`, as bits: one copy for every format, out of line as
+/// [`crate::num::coef_bits`] is and for the same reasons.
 #[cfg_attr(target_has_atomic = "ptr", inline(never))]
 #[cfg_attr(not(target_has_atomic = "ptr"), inline(always))]
 fn coef_bits_in(
@@ -106,17 +104,14 @@ fn coef_bits_in(
     // The largest value a Coef<frac> holds.
     let max = max.min(libm::ldexp(i32::MAX as f64, -(frac as i32)));
     let ok = value.is_finite() && ((zero_ok && value == 0.0) || (min..=max).contains(&value));
-    // As `Coef::new`: the nearest coefficient, within the i32 range.
-    let m = libm::round(libm::ldexp(value, frac as i32));
-    if ok && (-2_147_483_648.0..2_147_483_648.0).contains(&m) {
-        Ok(m as i32)
-    } else {
-        Err(ConfigError::Gain {
+    match crate::num::coef_bits(value, frac) {
+        Some(bits) if ok => Ok(bits),
+        _ => Err(ConfigError::Gain {
             key,
             value: value * si_per_pu,
             min: if zero_ok { 0.0 } else { min * si_per_pu },
             max: max * si_per_pu,
-        })
+        }),
     }
 }
 

@@ -357,6 +357,24 @@ impl Gain {
 
 /// A constant factor with a compile-time binary point: `value = bits · 2^−F`, `F` in 1..=32.
 ///
+/// The bits of the coefficient nearest to `value` at the binary point `frac` ([`Coef::new`]
+/// for a format known only at run time), or `None` if it is not finite or outside
+/// `[−2^(31−frac), 2^(31−frac))`. One copy for every format, out of line (the board's image
+/// carried one per format), but inlined on ARMv6-M, where the processor-in-the-loop harness
+/// designs its drives on a 16 KiB stack that an out-of-line call's frame overflowed.
+#[cfg_attr(target_has_atomic = "ptr", inline(never))]
+#[cfg_attr(not(target_has_atomic = "ptr"), inline(always))]
+pub(crate) fn coef_bits(value: f64, frac: u32) -> Option<i32> {
+    if !value.is_finite() {
+        return None;
+    }
+    let m = libm::round(libm::ldexp(value, frac as i32));
+    if !(-2_147_483_648.0..2_147_483_648.0).contains(&m) {
+        return None;
+    }
+    Some(m as i32)
+}
+
 /// The hot path's twin of [`Gain`]: where a coefficient's range is known from the motor
 /// envelope, a fixed `F` makes every product one `SMULL`, a constant shift and a high-word
 /// fit test (about ten instructions on a Cortex-M4, against about forty for a `Gain`'s
@@ -378,14 +396,7 @@ impl<const F: u32> Coef<F> {
     /// The coefficient nearest to `value`, or `None` if it is not finite or outside
     /// `[−2^(31−F), 2^(31−F))`.
     pub fn new(value: f64) -> Option<Self> {
-        if !value.is_finite() {
-            return None;
-        }
-        let m = libm::round(libm::ldexp(value, F as i32));
-        if !(-2_147_483_648.0..2_147_483_648.0).contains(&m) {
-            return None;
-        }
-        Some(Self(m as i32))
+        coef_bits(value, F).map(Self)
     }
 
     /// The raw bits (`value · 2^F`).
