@@ -1,5 +1,6 @@
 //! A random family of motors and the drive on each with its defaults only
-//! (`cargo xtask family [N] [--seed S] [--check] [--write]`).
+//! (`cargo xtask family [N] [--seed S] [--estimator NAME]... [--control KEY=VALUE]... [--check]
+//! [--write]`).
 //!
 //! Each motor is drawn from a bus-voltage class; its parameters follow from a few
 //! dimensionless proportions (the module's `PROPORTIONS` text, printed into
@@ -442,13 +443,18 @@ pub struct RunResult {
     pub outcome: Outcome,
 }
 
-/// Runs every applicable estimator on every motor, `threads` at a time, with the `key = value`
-/// lines of `control` in every run's `[control]`.
-pub fn run_all(motors: &[Motor], threads: usize, control: &[String]) -> Result<Vec<RunResult>> {
+/// Runs every applicable estimator of `estimators` on every motor, `threads` at a time, with
+/// the `key = value` lines of `control` in every run's `[control]`.
+pub fn run_all(
+    motors: &[Motor],
+    estimators: &[&'static str],
+    threads: usize,
+    control: &[String],
+) -> Result<Vec<RunResult>> {
     let jobs: Vec<(usize, &'static str)> = motors
         .iter()
         .flat_map(|m| {
-            ESTIMATORS
+            estimators
                 .iter()
                 .filter(|e| applies(e, m))
                 .map(move |e| (m.index, *e))
@@ -562,8 +568,14 @@ fn pct(k: usize, n: usize) -> String {
     }
 }
 
-/// The table per estimator and the list of runs that did not hold, Markdown.
-pub fn report(motors: &[Motor], redrawn: usize, seed: u64, results: &[RunResult]) -> String {
+/// The table per estimator of `estimators` and the list of runs that did not hold, Markdown.
+pub fn report(
+    motors: &[Motor],
+    estimators: &[&'static str],
+    redrawn: usize,
+    seed: u64,
+    results: &[RunResult],
+) -> String {
     let mut s = String::new();
     let surface = motors.iter().filter(|m| m.surface()).count();
     let tau_e = motors.iter().map(Motor::tau_e_s);
@@ -580,7 +592,7 @@ pub fn report(motors: &[Motor], redrawn: usize, seed: u64, results: &[RunResult]
     s.push_str(
         "| estimator | runs | holds | named fault | out of the bars, no fault | silent |\n|---|---:|---:|---|---:|---:|\n",
     );
-    for est in ESTIMATORS {
+    for &est in estimators {
         let t = tally(results, est);
         let faults = if t.faults.is_empty() {
             "0".to_string()
@@ -661,12 +673,18 @@ pub fn check(results: &[RunResult]) -> Vec<String> {
 
 /// The section of docs/PERFORMANCE.md from `n` motors drawn with `seed`, and the bars it
 /// misses ([`check`]); `control` holds `key = value` lines added to every run's `[control]`
-/// (none for the documented table: the drive's defaults).
-pub fn section(n: usize, seed: u64, control: &[String]) -> Result<(String, Vec<String>)> {
+/// (none for the documented table: the drive's defaults); `estimators` those to run (all of
+/// [`ESTIMATORS`] for the documented table).
+pub fn section(
+    n: usize,
+    seed: u64,
+    estimators: &[&'static str],
+    control: &[String],
+) -> Result<(String, Vec<String>)> {
     let (motors, redrawn) = family(n, seed);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let started = std::time::Instant::now();
-    let results = run_all(&motors, threads, control)?;
+    let results = run_all(&motors, estimators, threads, control)?;
     let wall = started.elapsed().as_secs_f64();
     let mut s = String::from(SECTION_TITLE);
     let _ = write!(
@@ -694,7 +712,14 @@ pub fn section(n: usize, seed: u64, control: &[String]) -> Result<(String, Vec<S
             control.join("`, `")
         );
     }
-    s.push_str(&report(&motors, redrawn, seed, &results));
+    if estimators.len() < ESTIMATORS.len() {
+        let _ = write!(
+            s,
+            "**Not every estimator**: only `{}` ran.\n\n",
+            estimators.join("`, `")
+        );
+    }
+    s.push_str(&report(&motors, estimators, redrawn, seed, &results));
     s.push('\n');
     Ok((s, check(&results)))
 }
@@ -721,7 +746,8 @@ pub fn replace_section(doc: &str, section: &str) -> String {
 }
 
 /// The arguments of `cargo xtask family`.
-pub const USAGE: &str = "family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write]";
+pub const USAGE: &str =
+    "family [N] [--seed S] [--estimator NAME]... [--control KEY=VALUE]... [--check] [--write]";
 
 /// `cargo xtask family` ([`USAGE`]).
 pub fn main(args: &[String]) -> Result<()> {
@@ -729,6 +755,7 @@ pub fn main(args: &[String]) -> Result<()> {
     let mut seed = DEFAULT_SEED;
     let (mut check_bars, mut write) = (false, false);
     let mut control = Vec::new();
+    let mut estimators: Vec<&'static str> = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -742,6 +769,14 @@ pub fn main(args: &[String]) -> Result<()> {
                 }
                 _ => bail!("--control needs KEY=VALUE (a [control] key of the scenario file)"),
             },
+            "--estimator" => match it
+                .next()
+                .and_then(|e| ESTIMATORS.iter().find(|k| **k == e.as_str()))
+            {
+                Some(e) if !estimators.contains(e) => estimators.push(e),
+                Some(_) => {}
+                None => bail!("--estimator needs one of {}", ESTIMATORS.join(", ")),
+            },
             "--check" => check_bars = true,
             "--write" => write = true,
             x => match x.parse() {
@@ -753,7 +788,12 @@ pub fn main(args: &[String]) -> Result<()> {
     if write && !control.is_empty() {
         bail!("--write records the drive's defaults: leave out --control");
     }
-    let (section, missed) = section(n, seed, &control)?;
+    if estimators.is_empty() {
+        estimators = ESTIMATORS.to_vec();
+    } else if write {
+        bail!("--write records every estimator: leave out --estimator");
+    }
+    let (section, missed) = section(n, seed, &estimators, &control)?;
     print!("{section}");
     if write {
         let path = crate::root().join("docs/PERFORMANCE.md");

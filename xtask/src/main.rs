@@ -5,10 +5,11 @@
 //! - `cargo xtask figures`: regenerates the paper figures under `docs/figures/`.
 //! - `cargo xtask examples`: regenerates the generated example inputs under `examples/`.
 //! - `cargo xtask sweep [N]`: N random healthy scenarios (default 200), none may fault.
-//! - `cargo xtask family [N] [--seed S] [--control KEY=VALUE]... [--check] [--write]`: the
-//!   drive with its defaults on N random motors (default 40); `--control` adds a `[control]`
-//!   key to every run (to measure an option against the defaults), `--check` fails below the
-//!   bars, `--write` rewrites the section of `docs/PERFORMANCE.md`.
+//! - `cargo xtask family [N] [--seed S] [--estimator NAME]... [--control KEY=VALUE]... [--check]
+//!   [--write]`: the drive with its defaults on N random motors (default 40); `--estimator`
+//!   runs only the estimators named, `--control` adds a `[control]` key to every run (to
+//!   measure an option against the defaults), `--check` fails below the bars, `--write`
+//!   rewrites the section of `docs/PERFORMANCE.md`.
 //! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
 //!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
@@ -126,7 +127,15 @@ fn perf() -> Result<()> {
     // The operating map is `cargo xtask map`'s (a minute more): kept as it is.
     doc.push_str(&map::kept_section());
     eprintln!("the drive on a random family of motors ...");
-    doc.push_str(&family::section(family::DOC_MOTORS, family::DEFAULT_SEED, &[])?.0);
+    doc.push_str(
+        &family::section(
+            family::DOC_MOTORS,
+            family::DEFAULT_SEED,
+            &family::ESTIMATORS,
+            &[],
+        )?
+        .0,
+    );
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");

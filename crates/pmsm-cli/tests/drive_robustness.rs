@@ -431,7 +431,9 @@ fn the_low_speed_current_carries_that_reversal_through() {
 /// reference the drive settles into a cycle at the electrical frequency (a DC current in the
 /// stationary frame whose distortion the reference's signs misjudge), ±24 r/min of estimated
 /// speed at no load, which grows under the load into `loss_of_lock`; with the measured
-/// current's signs (`[control] deadtime_current = "measured"`) the cycle is gone.
+/// current's signs (`[control] deadtime_current = "measured"`) the cycle is gone. The default,
+/// the reference's signs at light load and the measured under load
+/// (`"measured-under-load"`), keeps the no-load cycle and holds the load.
 const SALIENT_540V: &str = "duration_s = 2.1\n\
     motor = { name = \"family 39\", pole_pairs = 3, rs_ohm = 0.41285354949128833, \
     ld_h = 0.005418573234970563, lq_h = 0.011317155400954253, flux_wb = 0.24570648451733323, \
@@ -446,7 +448,14 @@ const SALIENT_540V: &str = "duration_s = 2.1\n\
 #[test]
 fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
     let sigma = |rows: &[&pmsm_cli::commands::simulate::Row]| std_dev(rows, |r| r.speed_est_rpm);
-    let reference = run_scenario(&scenario_text("salient-540v-reference", SALIENT_540V)).unwrap();
+    let with = |source: &str| {
+        SALIENT_540V.replace(
+            "deadtime_compensation = true\n",
+            &format!("deadtime_compensation = true\ndeadtime_current = \"{source}\"\n"),
+        )
+    };
+    let reference =
+        run_scenario(&scenario_text("salient-540v-reference", &with("reference"))).unwrap();
     let no_load = window(&reference.rows, 1.2, 1.46);
     let fault = first_fault(&reference.rows).map(|r| (r.fault(), r.t_s));
     println!(
@@ -456,11 +465,8 @@ fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
     assert!(sigma(&no_load) > 15.0);
     assert_eq!(fault.map(|f| f.0), Some("loss_of_lock"));
 
-    let text = SALIENT_540V.replace(
-        "deadtime_compensation = true\n",
-        "deadtime_compensation = true\ndeadtime_current = \"measured\"\n",
-    );
-    let measured = run_scenario(&scenario_text("salient-540v-measured", &text)).unwrap();
+    let measured =
+        run_scenario(&scenario_text("salient-540v-measured", &with("measured"))).unwrap();
     assert!(first_fault(&measured.rows).is_none());
     let (no_load, loaded) = (
         window(&measured.rows, 1.2, 1.46),
@@ -477,6 +483,24 @@ fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
     assert!(sigma(&no_load) < 6.0);
     assert!(rms_angle(&no_load) < 0.01);
     assert!(rms_angle(&loaded) < 0.02);
+
+    // The default: the reference's signs below six bands of q current, the measured above.
+    let default = run_scenario(&scenario_text("salient-540v-default", SALIENT_540V)).unwrap();
+    let fault = first_fault(&default.rows).map(|r| (r.fault(), r.t_s));
+    let (no_load, loaded) = (
+        window(&default.rows, 1.2, 1.46),
+        window(&default.rows, 1.8, 2.1),
+    );
+    println!(
+        "default: no-load estimated speed σ {:.2} r/min; loaded {:.4} rad rms, speed error \
+         {:.3} %, fault {fault:?}",
+        sigma(&no_load),
+        rms_angle(&loaded),
+        speed_err(&loaded)
+    );
+    assert!(fault.is_none());
+    assert!(rms_angle(&loaded) < 0.02);
+    assert!(speed_err(&loaded) < 0.01);
 }
 
 /// Family seed 3 #23: a 320 V surface motor, 7 pole pairs, the NLO with the defaults: the

@@ -87,10 +87,22 @@ pub enum CurrentSource {
     /// command acts over, while the current vector lies beyond the band (`|i_d| + |i_q| >
     /// i_band`); within it, the reference.
     Measured,
+    /// The measured current while the q current the loop is expected to carry lies beyond
+    /// [`MEASURED_SIGN_BANDS`] bands of zero and the estimated speed's EMF beyond `V_dead`
+    /// (under load, where the reference's signs sustain a cycle at the electrical frequency on
+    /// a strongly salient motor); the reference otherwise (at light load the measured signs
+    /// chatter with the ripple, and near standstill the distortion outweighs the EMF).
+    MeasuredUnderLoad,
     /// The current reference through the current loop's lag, turned likewise.
     #[default]
     Reference,
 }
+
+/// The q current, in bands `i_band`, from which [`CurrentSource::MeasuredUnderLoad`] takes the
+/// measured current (docs/drive.md, "dead-time compensation: which current's sign"). On the
+/// random family 4 held one run more than 6 but doubled motor B's no-load oscillation on the
+/// averaged inverter with a hard sign; 8 held three fewer.
+pub const MEASURED_SIGN_BANDS: u32 = 6;
 
 /// Switching-device parameters beyond [`InverterParams`] (SI; zero for ideal devices).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -144,6 +156,11 @@ pub struct DeadTimeConfig {
     inv_band: Reciprocal,
     /// `i_band` in LSB of [`Pu`], rounded up: beyond it the sign is ±1 exactly.
     band_bits: i32,
+    /// The q current beyond which the drive may take the measured current in place of the
+    /// reference, LSB of [`Pu`]: [`MEASURED_SIGN_BANDS`] bands with
+    /// [`CurrentSource::MeasuredUnderLoad`], never (`u32::MAX`) otherwise (one comparison
+    /// serves both sources; computing it at run time cost the Cortex-M0 8 instructions).
+    loaded_bits: u32,
     /// The design (SI).
     pub design: DeadTimeDesign,
     /// `V_dead` at the nominal bus, V.
@@ -204,6 +221,14 @@ impl DeadTimeConfig {
             )?,
             // band ≤ 10 I_b: at most 10·2²⁴ + 1 LSB.
             band_bits: libm::ceil(band / base.current_a * (1u64 << 24) as f64) as i32,
+            // At most 6·(10·2²⁴ + 1) < 2³² LSB.
+            loaded_bits: match design.source {
+                CurrentSource::MeasuredUnderLoad => {
+                    MEASURED_SIGN_BANDS
+                        * libm::ceil(band / base.current_a * (1u64 << 24) as f64) as u32
+                }
+                CurrentSource::Measured | CurrentSource::Reference => u32::MAX,
+            },
             design,
             v_dead_nominal_v: k * inverter.vdc_v + v_const,
         })
@@ -243,6 +268,14 @@ impl DeadTimeConfig {
     pub(crate) fn beyond_band(&self, i: Dq) -> bool {
         let (d, q) = (i.d.to_bits(), i.q.to_bits());
         d.saturating_abs().saturating_add(q.saturating_abs()) > self.band_bits
+    }
+
+    /// Whether the q current `i_q` lies beyond [`MEASURED_SIGN_BANDS`] bands with
+    /// [`CurrentSource::MeasuredUnderLoad`] (where the drive may take the measured current);
+    /// false with the other sources.
+    #[inline(always)]
+    pub(crate) fn loaded(&self, i_q: Pu) -> bool {
+        i_q.to_bits().unsigned_abs() > self.loaded_bits
     }
 
     /// `sat(i/i_band)` in [−1, 1], Q4.28. Beyond `band_bits` (the band rounded up to an

@@ -115,7 +115,9 @@ pub use control::{
     LOW_SPEED_FADE_PER_RATED, LightLoad, LightLoadConfig, LowSpeedConfig,
 };
 pub use cordic::{Polar, polar};
-pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
+pub use deadtime::{
+    CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams, MEASURED_SIGN_BANDS,
+};
 pub use drive::{ACTIVE_SHORT, MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, RECTIFY_GRACE_S};
 pub use drive::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput,

@@ -34,10 +34,13 @@ pub enum SpeedLoopForm {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum DeadTimeCurrent {
-    /// The current reference turned to αβ (the default with the current-model MRAS).
+    /// The current reference turned to αβ.
     Reference,
     /// The measured current (the default with the back-EMF estimators).
     Measured,
+    /// The reference at light load, the measured current under load (the default with the
+    /// current-model MRAS).
+    MeasuredUnderLoad,
 }
 
 /// Start-up modes.
@@ -155,9 +158,10 @@ pub struct Control {
     /// "Zero crossings at low speed"; default on; it acts only while the dead-time
     /// compensation does).
     pub zero_crossing_hold: Option<bool>,
-    /// The current whose signs the dead-time compensation takes: `"reference"` (the default
-    /// with the current-model MRAS) or `"measured"` (the default with the back-EMF
-    /// estimators; docs/drive.md, "dead-time compensation: which current's sign").
+    /// The current whose signs the dead-time compensation takes: `"reference"`,
+    /// `"measured"` (the default with the back-EMF estimators) or `"measured-under-load"`
+    /// (the default with the current-model MRAS; docs/drive.md, "dead-time compensation:
+    /// which current's sign").
     pub deadtime_current: Option<DeadTimeCurrent>,
     /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
     /// default false).

@@ -66,7 +66,7 @@
 //! [`super::light_load`].
 
 use crate::error::ConfigError;
-use crate::num::{Coef, PU_FRAC, Pu, pu_from_f64};
+use crate::num::{Pu, pu_from_f64};
 use crate::params::{MotorParams, in_range, positive};
 use crate::units::PerUnit;
 
@@ -89,8 +89,12 @@ pub struct LowSpeedConfig {
     per_speed: i32,
     /// The speed loop's current limit `I_max`, [`Pu`] bits.
     limit: i32,
-    /// `1/I_max` per unit, rounded up (the room then errs inside the circle).
-    inv_limit: Coef<16>,
+    /// `s`: the least shift that takes `I_max/2ˢ` below 2¹⁵ (zero for `I_max` < 2¹⁵ bits), the
+    /// scale of the room's 32-bit products.
+    shift: u32,
+    /// `2³⁰·2ˢ/I_max` rounded up (at most 2¹⁶ for `s` > 0, 2²⁰ with `I_max` ≥ 2¹⁰ bits):
+    /// `x/I_max` in Q14 from `x/2ˢ`, erring up (the room then errs inside the circle).
+    inv_limit: u32,
 }
 
 impl LowSpeedConfig {
@@ -101,7 +105,8 @@ impl LowSpeedConfig {
         fade: 1 << 12,
         per_speed: 0,
         limit: 0,
-        inv_limit: Coef::ZERO,
+        shift: 0,
+        inv_limit: 0,
     };
 
     /// `I_LS = current_a` (A peak; 0 turns it off), faded out at the electrical speed
@@ -124,14 +129,18 @@ impl LowSpeedConfig {
         // ω_LS in units of 2⁻¹² pu, at least one; I_LS/ω_LS rounded down (the current then
         // reaches zero a fraction of a unit beyond ω_LS, within `max(0)`).
         let fade_units = ((fade / base.omega_e_rad_s * 4096.0) as i32).max(1);
-        // 1/I_max in Q16 rounded up (below 2³⁰ with I_max ≥ 2⁻¹⁴ pu).
+        // I_max ≥ 2⁻¹⁴ pu (2¹⁰ bits): I_max/2ˢ below 2¹⁵, at least 2¹⁴ when s > 0.
         let limit = limit.to_bits().max(1 << 10);
+        let shift = (32 - limit.leading_zeros()).saturating_sub(15);
         Ok(Self {
             current,
             fade: fade_units.saturating_mul(1 << 12),
             per_speed: current / fade_units,
             limit,
-            inv_limit: Coef::from_bits(libm::ceil(1_099_511_627_776.0 / f64::from(limit)) as i32),
+            shift,
+            inv_limit: libm::ceil(
+                f64::from(1u32 << 30) * f64::from(1u32 << shift) / f64::from(limit),
+            ) as u32,
         })
     }
 
@@ -189,19 +198,25 @@ impl LowSpeedConfig {
 
     /// `faded` within the room `I_max − x²/I_max` that `x = max(|iq|, level)` leaves: the q
     /// reference `iq` as it rises, its filtered magnitude `level` (`≥ 0`) as it falls. Two
-    /// 64-bit products.
+    /// 32-bit products at 2⁻¹⁴ of `I_max`, each rounded up so that the room errs inside the
+    /// circle, by at most `4·2⁻¹⁴ I_max` and a few LSB (in 64 bits they made the slot that
+    /// takes them the Cortex-M0's dearest, by about 120 instructions).
     #[inline(always)]
     pub fn within_limit(&self, faded: Pu, iq: Pu, level: Pu) -> Pu {
-        // x ≤ I_max ≤ 64 pu (2³⁰ bits), 1/I_max < 2¹⁵ in Q16 (`new`): r = x/I_max in Q8.24,
-        // taken at most 1 (the rounding up of 1/I_max can lift it a hair above), and x r ≤ x.
-        // Plain 64-bit products: none can leave its format.
         let x = iq
             .to_bits()
             .unsigned_abs()
             .max(level.to_bits() as u32)
-            .min(self.limit as u32) as i64;
-        let r = ((x * i64::from(self.inv_limit.bits())) >> 16).min(1 << PU_FRAC);
-        let room = self.limit - ((x * r) >> PU_FRAC) as i32;
+            .min(self.limit as u32);
+        // x ≤ I_max < 2¹⁵·2ˢ: x/2ˢ rounded up ≤ 2¹⁵, times 2³⁰·2ˢ/I_max at most 2³¹ (with
+        // s = 0, I_max (2³⁰/I_max + 1) ≤ 2³⁰ + 2¹⁵), and +2¹⁶ − 1 to round up: r = x/I_max in
+        // Q14, at most one. Then x²/(I_max 2ˢ) ≤ 2¹⁵ + 1 from a product ≤ 2²⁹, and back in
+        // bits at most I_max + 2ˢ⁺¹ < 2³¹.
+        let s = self.shift;
+        let xn = (x + (1 << s) - 1) >> s;
+        let r = ((xn * self.inv_limit + 0xFFFF) >> 16).min(1 << 14);
+        let sq = (xn * r + 0x3FFF) >> 14;
+        let room = self.limit - (sq << s) as i32;
         Pu::from_bits(faded.to_bits().min(room).max(0))
     }
 }
@@ -209,6 +224,39 @@ impl LowSpeedConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::num::PU_FRAC;
+
+    /// The room `I_max − x²/I_max` in 32-bit products against f64, over limits from the
+    /// least taken (2⁻¹⁴ pu) to 64 pu and `x` across `[0, I_max]`: never outside the f64
+    /// room (so never outside the circle), and within `4·2⁻¹⁴ I_max` + 3 LSB of it (the
+    /// LSB: the roundings up of `x/2ˢ` and of the square, and `x` itself to its bits).
+    #[test]
+    fn the_room_errs_inside_and_within_its_bound() {
+        let base = PerUnit::new(&motor_b(), &inverter_b(), 14e3).unwrap();
+        let lsb = 1.0 / f64::from(1u32 << PU_FRAC);
+        for lim_pu in [1.0 / 16384.0, 0.0123, 0.37, 1.0, 5.3, 63.9] {
+            let c = LowSpeedConfig::new(1.0, 100.0, pu_from_f64(lim_pu), &base).unwrap();
+            let lim = f64::from(c.limit) * lsb;
+            let mut worst: f64 = 0.0;
+            for k in 0..=1000 {
+                let x = lim * f64::from(k) / 1000.0;
+                let want = lim - x * x / lim;
+                let big = Pu::from_bits(i32::MAX);
+                let got = c
+                    .within_limit(big, pu_from_f64(x), Pu::ZERO)
+                    .to_num::<f64>();
+                assert!(got <= want + lsb, "{lim_pu} pu, x {x}: {got} > {want}");
+                worst = worst.max(want - got);
+                // The filtered level counts as the reference does.
+                let by_level = c.within_limit(big, Pu::ZERO, pu_from_f64(x));
+                assert_eq!(by_level, c.within_limit(big, pu_from_f64(-x), Pu::ZERO));
+            }
+            assert!(
+                worst <= 4.0 * lim / 16384.0 + 3.0 * lsb,
+                "{lim_pu} pu: {worst}"
+            );
+        }
+    }
     use crate::fixtures::{inverter_b, motor_b};
 
     /// The fixed-point law against the f64 one over speeds through the fade and q

@@ -201,7 +201,8 @@ pub struct DriveDesign {
     pub speed_filter_rad_s: Option<f64>,
     /// Dead-time compensation ([`DeadTimeMode::Off`] disables it). Default
     /// [`DeadTimeDesign::default_for`], with the signs of the measured currents
-    /// ([`CurrentSource::Measured`]) for the back-EMF estimators.
+    /// ([`CurrentSource::Measured`]) for the back-EMF estimators and of the measured currents
+    /// under load only ([`CurrentSource::MeasuredUnderLoad`]) for the current-model MRAS.
     pub deadtime: DeadTimeDesign,
     /// Initial position detection.
     pub ipd: IpdDesign,
@@ -302,13 +303,15 @@ impl DriveDesign {
             // reference (the open-loop reversal, a loaded handover) the reference's signs are
             // wrong. On the random family, seeds 1–14, the NLO then holds 301 of 301 runs
             // against 282, the AO 294 against 269. The current-model MRAS keeps the
-            // reference's: near zero current the measured sign chatters with the ripple
-            // (docs/drive.md, "dead-time compensation: which current's sign").
+            // reference's at light load, where the measured sign chatters with the ripple, and
+            // takes the measured under load, where the reference's sustain a cycle on strongly
+            // salient motors: 537 of 560 runs against 524 (docs/drive.md, "dead-time
+            // compensation: which current's sign").
             deadtime: DeadTimeDesign {
                 source: if estimator.needs_open_loop_start() {
                     CurrentSource::Measured
                 } else {
-                    CurrentSource::Reference
+                    CurrentSource::MeasuredUnderLoad
                 },
                 ..deadtime
             },

@@ -940,7 +940,18 @@ impl Drive {
         // its signs chatter with the ripple and the noise, and the compensation passes that
         // on: there the reference's (a 48 V motor of the random family at no load, its current
         // within the band, lost the NLO's lock in the ramp with the measured signs alone).
-        let i = if deadtime.design.source == CurrentSource::Measured && deadtime.beyond_band(i_dq) {
+        // Under load the reference's signs are wrong where a cycle of the estimate offsets the
+        // current from its reference (a strongly salient motor); below the speed whose EMF
+        // equals `V_dead` (`|ω̂| ψ`, ψ the base flux), the measured ones are (motor B reversing
+        // through zero under its rated load lost its lock): there the reference's
+        // (docs/drive.md, "dead-time compensation: which current's sign").
+        let measured = if deadtime.design.source == CurrentSource::Measured {
+            deadtime.beyond_band(i_dq)
+        } else {
+            deadtime.loaded(self.i_q_expected)
+                && self.speed_filtered.to_bits().unsigned_abs() > self.deadtime_bus.v_dead_bits()
+        };
+        let i = if measured {
             i_dq
         } else {
             Dq {

@@ -181,6 +181,7 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
         design.deadtime.source = match source {
             DeadTimeCurrent::Reference => CurrentSource::Reference,
             DeadTimeCurrent::Measured => CurrentSource::Measured,
+            DeadTimeCurrent::MeasuredUnderLoad => CurrentSource::MeasuredUnderLoad,
         };
     }
     if let Some(i) = c.light_load_id_a {
