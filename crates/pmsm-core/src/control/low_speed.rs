@@ -111,7 +111,7 @@ impl LowSpeedConfig {
 
     /// `I_LS = current_a` (A peak; 0 turns it off), faded out at the electrical speed
     /// `fade_rad_s`, within the speed loop's current limit `limit` (per unit, as the speed
-    /// loop holds it: at least 2⁻¹⁴ pu is taken), in the bases `base`.
+    /// loop holds it: taken within [2⁻¹⁴, 64] pu), in the bases `base`.
     ///
     /// Errors: [`ConfigError::Param`] for `low_speed_id_a` outside `[0, 10 I_b]` or a
     /// `low_speed_fade_rad_s` that is not positive. (Beyond the limit the current is the room
@@ -129,8 +129,9 @@ impl LowSpeedConfig {
         // ω_LS in units of 2⁻¹² pu, at least one; I_LS/ω_LS rounded down (the current then
         // reaches zero a fraction of a unit beyond ω_LS, within `max(0)`).
         let fade_units = ((fade / base.omega_e_rad_s * 4096.0) as i32).max(1);
-        // I_max ≥ 2⁻¹⁴ pu (2¹⁰ bits): I_max/2ˢ below 2¹⁵, at least 2¹⁴ when s > 0.
-        let limit = limit.to_bits().max(1 << 10);
+        // I_max in [2⁻¹⁴, 64] pu (2¹⁰ to 2³⁰ bits; the room's products stay within 32 bits
+        // up to there): I_max/2ˢ below 2¹⁵, at least 2¹⁴ when s > 0.
+        let limit = limit.to_bits().clamp(1 << 10, 1 << 30);
         let shift = (32 - limit.leading_zeros()).saturating_sub(15);
         Ok(Self {
             current,
@@ -224,6 +225,7 @@ impl LowSpeedConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fixtures::{inverter_b, motor_b};
     use crate::num::PU_FRAC;
 
     /// The room `I_max − x²/I_max` in 32-bit products against f64, over limits from the
@@ -234,7 +236,7 @@ mod tests {
     fn the_room_errs_inside_and_within_its_bound() {
         let base = PerUnit::new(&motor_b(), &inverter_b(), 14e3).unwrap();
         let lsb = 1.0 / f64::from(1u32 << PU_FRAC);
-        for lim_pu in [1.0 / 16384.0, 0.0123, 0.37, 1.0, 5.3, 63.9] {
+        for lim_pu in [1.0 / 16384.0, 0.0123, 0.37, 1.0, 5.3, 63.9, 64.0] {
             let c = LowSpeedConfig::new(1.0, 100.0, pu_from_f64(lim_pu), &base).unwrap();
             let lim = f64::from(c.limit) * lsb;
             let mut worst: f64 = 0.0;
@@ -257,7 +259,6 @@ mod tests {
             );
         }
     }
-    use crate::fixtures::{inverter_b, motor_b};
 
     /// The fixed-point law against the f64 one over speeds through the fade and q
     /// references up to the limit, and within the current circle: within one step of the speed's 2⁻¹² pu (`I_LS` over the
