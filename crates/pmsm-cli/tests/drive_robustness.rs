@@ -445,15 +445,18 @@ const SALIENT_540V: &str = "duration_s = 2.1\n\
     [speed_ref]\nt_s = [0.0, 0.6, 0.961769, 2.1]\nrpm = [0.0, 0.0, 1161.5, 1161.5]\n\
     [load]\nt_s = [0.0, 1.461769, 1.462769, 2.1]\nnm = [0.0, 0.0, 12.560966, 12.560966]\n";
 
+/// `scenario` with `[control] deadtime_current = source`.
+fn with_deadtime_current(scenario: &str, source: &str) -> String {
+    scenario.replace(
+        "deadtime_compensation = true\n",
+        &format!("deadtime_compensation = true\ndeadtime_current = \"{source}\"\n"),
+    )
+}
+
 #[test]
 fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
     let sigma = |rows: &[&pmsm_cli::commands::simulate::Row]| std_dev(rows, |r| r.speed_est_rpm);
-    let with = |source: &str| {
-        SALIENT_540V.replace(
-            "deadtime_compensation = true\n",
-            &format!("deadtime_compensation = true\ndeadtime_current = \"{source}\"\n"),
-        )
-    };
+    let with = |source: &str| with_deadtime_current(SALIENT_540V, source);
     let reference =
         run_scenario(&scenario_text("salient-540v-reference", &with("reference"))).unwrap();
     let no_load = window(&reference.rows, 1.2, 1.46);
@@ -539,10 +542,7 @@ fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
     // and the NLO turns to the mirror angle; the reversal's handover check trips (before the
     // reversal held its new direction, the estimate turned with the rotor, which the load
     // drove backwards: `driven_backwards` at the same instant).
-    let text = SURFACE_320V_NLO.replace(
-        "deadtime_compensation = true\n",
-        "deadtime_compensation = true\ndeadtime_current = \"reference\"\n",
-    );
+    let text = with_deadtime_current(SURFACE_320V_NLO, "reference");
     let reference = run_scenario(&scenario_text("surface-320v-nlo-reference", &text)).unwrap();
     let fault = first_fault(&reference.rows).map(|r| (r.fault(), r.t_s));
     println!("reference signs: fault {fault:?}");

@@ -202,6 +202,8 @@ impl DeadTimeConfig {
             10.0 * base.current_a,
         )?;
         let v_const = 0.5 * (d.v_sat_v + d.v_f_v) - k * (d.v_sat_v - d.v_f_v);
+        // band ≤ 10 I_b: at most 10·2²⁴ + 1 LSB, rounded up.
+        let band_bits = libm::ceil(band / base.current_a * (1u64 << 24) as f64) as u32;
         Ok(Self {
             // k ∈ [0, 0.1) (checked above): Q1.31 holds it to 4.7e−10.
             k_bus: Coef::new(k).ok_or(ConfigError::Gain {
@@ -219,14 +221,10 @@ impl DeadTimeConfig {
                     max: 10.0 * base.current_a,
                 },
             )?,
-            // band ≤ 10 I_b: at most 10·2²⁴ + 1 LSB.
-            band_bits: libm::ceil(band / base.current_a * (1u64 << 24) as f64) as i32,
+            band_bits: band_bits as i32,
             // At most 6·(10·2²⁴ + 1) < 2³² LSB.
             loaded_bits: match design.source {
-                CurrentSource::MeasuredUnderLoad => {
-                    MEASURED_SIGN_BANDS
-                        * libm::ceil(band / base.current_a * (1u64 << 24) as f64) as u32
-                }
+                CurrentSource::MeasuredUnderLoad => MEASURED_SIGN_BANDS * band_bits,
                 CurrentSource::Measured | CurrentSource::Reference => u32::MAX,
             },
             design,
