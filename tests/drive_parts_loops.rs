@@ -313,9 +313,9 @@ fn rise_time(x: &[f64], target: f64, ts: f64) -> f64 {
 }
 
 /// q and d current steps at 800 r/min with decoupling: first-order response of the designed
-/// bandwidth. ω_c = 700 rad/s gives a 10–90 % rise time of ln 9/ω_c = 3.14 ms; measured
-/// 3.00 ms (q, 1 pu) and 3.14 ms (d, −0.5 pu), peak 1.0002 of the step, error after 30 ms
-/// 4.9e−5 pu (bound 1e−4), cross-coupling 7.7e−6 pu.
+/// bandwidth. ω_c = 1400 rad/s gives a 10–90 % rise time of ln 9/ω_c = 1.57 ms; measured
+/// 1.50 ms (q, 1 pu, and d, −0.5 pu), peak 1.0003 of the step, error after 30 ms 1.8e−5 pu
+/// (bound 1e−4), cross-coupling 2.8e−6 pu.
 #[test]
 fn current_step_matches_designed_bandwidth() {
     let base = base_b();
@@ -393,9 +393,10 @@ fn no_steady_state_error_without_decoupling() {
 /// flowing. Bus 216 V: `V_max` = 0.4 pu; 2 pu of i_q is infeasible at 800 r/min (the current
 /// stops at 1.43 pu).
 ///
-/// Measured: |v| ≤ V_max + 0 LSB; after the drop to 0.5 pu, undershoot 0.04 %, within 2 % of
-/// 0.5 pu after 6.5 ms (a first-order loop at ω_c from 1.43 pu: ln(0.93/0.01)/ω_c = 6.5 ms).
-/// The same PI integrating through the saturation (f64, no anti-windup) needs 27 ms.
+/// Measured: |v| ≤ V_max + 0 LSB; after the drop to 0.5 pu, undershoot 0.05 %, within 2 % of
+/// 0.5 pu after 3.0 ms (a first-order loop at ω_c from 1.43 pu: ln(0.93/0.01)/ω_c = 3.2 ms).
+/// The same PI integrating through the saturation (f64, no anti-windup) needed 27 ms at
+/// `ω_c = 0.05/T_s`.
 #[test]
 fn anti_windup_recovers_after_voltage_saturation() {
     let base = base_b();
@@ -620,7 +621,7 @@ fn default_gains_follow_the_formulas() {
     let m = motor_b();
     let base = base_b();
     let cc = CurrentConfig::new(&m, &base, CurrentDesign::default_for(&base)).unwrap();
-    let wc = 0.05 * FS_HZ;
+    let wc = 0.1 * FS_HZ;
     let expect = [wc * m.ld_h, wc * m.rs_ohm, wc * m.lq_h, wc * m.rs_ohm];
     for (g, e) in cc.gains_si.iter().zip(expect) {
         assert!((g / e - 1.0).abs() < 1e-12);

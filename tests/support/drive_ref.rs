@@ -76,6 +76,9 @@ pub struct MrasRef {
     pub levels: [(f64, f64); 5],
     /// The factor of the level in use.
     pub boost: f64,
+    /// The d-axis error's weight in `ξ`, relative to eq. 21's (`pmsm_core::MrasCurrentGains::
+    /// d_weight`; 1: the paper's).
+    pub d_weight: f64,
 }
 
 impl MrasRef {
@@ -106,7 +109,14 @@ impl MrasRef {
             i_load: 0.0,
             levels: [(0.0, 1.0); 5],
             boost: 1.0,
+            d_weight: 1.0,
         }
+    }
+
+    /// With the d-axis error weighed by `w` in `ξ` (`w (L_q/L_d) i_q ε_d`).
+    pub fn with_d_weight(mut self, w: f64) -> Self {
+        self.d_weight = w;
+        self
     }
 
     /// The low-speed schedule of the crate's current-model MRAS, from its definition: the
@@ -178,8 +188,9 @@ impl MrasRef {
         self.theta = th1;
         let i = park(i_ab, th1);
         let (ed, eq) = (i[0] - self.i_hat[0], i[1] - self.i_hat[1]);
-        // Khlaief, Boussak, Gossa (2012) eq. 22 (docs/khlaief2012.md §2).
-        let xi = (self.lq / self.ld) * i[1] * ed
+        // Khlaief, Boussak, Gossa (2012) eq. 22, the d-axis error weighed by `d_weight`
+        // (docs/khlaief2012.md §2).
+        let xi = self.d_weight * (self.lq / self.ld) * i[1] * ed
             - (self.ld / self.lq) * i[0] * eq
             - (self.psi / self.lq) * eq;
         self.xi = xi;

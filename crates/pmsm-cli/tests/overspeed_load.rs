@@ -17,7 +17,7 @@ fn run(motor: &str, vdc: f64, pwm: f64, dt: f64, rpm: f64, load_nm: f64, fw: boo
     let (ramp, t_load, dur) = if motor.contains("motor-b") {
         (0.6, 0.65, 0.9)
     } else {
-        (0.3, 0.35, 0.5)
+        (0.3, 0.35, 0.6)
     };
     let text = format!(
         "duration_s = {dur}\nmotor = \"{motor}\"\n[inverter]\nvdc_v = {vdc}\npwm_hz = {pwm}\n\

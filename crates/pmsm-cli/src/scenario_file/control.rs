@@ -102,6 +102,10 @@ pub struct Control {
     /// sensitivity to the position error falls (`MrasCurrentGains::low_speed_schedule`,
     /// docs/khlaief2012.md; default: the core's).
     pub mras_low_speed_schedule: Option<bool>,
+    /// The weight of the d-axis error in the current-model MRAS's tuning signal, relative to
+    /// Khlaief, Boussak, Gossa (2012) eq. 21's, in [0, 1] (`MrasCurrentGains::d_weight`,
+    /// docs/khlaief2012.md §2; default `pmsm_core::MrasCurrentGains`'s, 1/2; 1: the paper's).
+    pub mras_d_weight: Option<f64>,
     /// Current limit of the speed loop, A peak (default: the rated peak current, `√2 ·
     /// rated_current_a`, the per-unit base `I_b`).
     pub current_limit_a: Option<f64>,
@@ -200,6 +204,9 @@ impl Control {
                     reason: ParamReason::Inconsistent("control.speed_loop (give one of them)"),
                 });
             }
+        }
+        if let Some(w) = self.mras_d_weight {
+            in_range("control.mras_d_weight", w, 0.0, 1.0)?;
         }
         if let Some(n) = self.pwm_update_delay_periods {
             in_range("control.pwm_update_delay_periods", n as f64, 0.0, 16.0)?;

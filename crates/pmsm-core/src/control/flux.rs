@@ -41,7 +41,7 @@
 //!
 //! With `|v| ≈ ω (ψ + L_d i_d)` the loop is `d|v|²/dΔ ≈ 2 |v| ω L_d`, and the gain
 //! `K_fw = ω_fw T / 2` (per unit, `T = 4 T_s`) puts its pole near `ω_fw` where `|v| ω L_d ≈ 1`
-//! (`K_fw = 5/128`: `ω_fw ≈ 0.02/T_s`, 273 rad/s at 14 kHz, below the current loops' 700 rad/s).
+//! (`K_fw = 5/128`: `ω_fw ≈ 0.02/T_s`, 273 rad/s at 14 kHz, below the current loops' 1400 rad/s).
 //!
 //! # Formats
 //!

@@ -26,7 +26,7 @@
 //! and for a natural frequency `ω_n` and damping `ζ`:
 //! `K_iΩ = ω_n²/K`, `K_pΩ = (2 ζ ω_n − B/J)/K` (not below 0). With `ζ ≥ 1` both poles are real
 //! and there is no zero, so the step response is monotone: no overshoot (Khlaief, Boussak, Gossa (2012) §7, Fig. 7).
-//! Defaults: `ζ = 1`, `ω_n` a tenth of the default current-loop bandwidth, `0.005/T_s`
+//! Defaults: `ζ = 1`, `ω_n` a twentieth of the default current-loop bandwidth, `0.005/T_s`
 //! (70 rad/s at 14 kHz), `I_max` = 1 pu (rated peak current).
 //!
 //! # Following a ramp
@@ -100,7 +100,7 @@ const KI_MIN: f64 = 1.0 / 8_388_608.0;
 /// corrects a unit error in one sample, which no speed loop needs).
 const KI_MAX: f64 = 1.0 - 1.0 / 2_147_483_648.0;
 
-/// Default `ω_n T_s` of the speed loop (a tenth of the current loop's default).
+/// Default `ω_n T_s` of the speed loop (a twentieth of the current loop's default).
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.005;
 
 /// Default [`SpeedDesign::decimation`]: the speed loop on every sample. Every second sample

@@ -214,6 +214,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     if let Some(on) = c.mras_low_speed_schedule {
         design.mras_current.low_speed_schedule = on;
     }
+    if let Some(w) = c.mras_d_weight {
+        design.mras_current.d_weight = w as f32;
+    }
     if let Some(a) = c.current_limit_a {
         design.speed.current_limit_a = a;
         design.open_loop.current_a = design.open_loop.current_a.min(a);

@@ -26,7 +26,8 @@ pub struct MrasCurrentConfig {
     pub(super) off_d_acc: i64,
     /// `Ψ_q = a_q ψ/L_q` in the weights' accumulator.
     pub(super) off_q_acc: i64,
-    /// `ρ² = (L_q/L_d)²` and `ψ/L_d` of ξ̃ (eq. 22 × L_q/L_d).
+    /// `w ρ² = w (L_q/L_d)²` (`w` the d-axis error's weight) and `ψ/L_d` of ξ̃ (eq. 22 ×
+    /// L_q/L_d).
     pub(super) rho2: Coef<26>,
     pub(super) psi_ld: Pu,
     /// `ξ' = (L_d/ψ) ξ̃`, for [`MrasCurrent::xi`] only.
@@ -128,8 +129,9 @@ impl MrasCurrentConfig {
     ///
     /// Errors: [`ConfigError::Param`] for a bad motor parameter; [`ConfigError::Gain`] naming
     /// `mras_current.kp`, `mras_current.ki` or `mras_current.kl` outside the ranges of the
-    /// module docs, or naming the motor parameter (`ld_h`, `lq_h`, `j_kg_m2`, `b_nm_s`,
-    /// `sample_hz`) of a coefficient outside its format (module docs, "Formats").
+    /// module docs or `mras_current.d_weight` outside `[0, 1]`, or naming the motor parameter
+    /// (`ld_h`, `lq_h`, `j_kg_m2`, `b_nm_s`, `sample_hz`) of a coefficient outside its format
+    /// (module docs, "Formats").
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,
@@ -155,6 +157,15 @@ impl MrasCurrentConfig {
                     max,
                 });
             }
+        }
+        let d_weight = f64::from(gains.d_weight);
+        if !(0.0..=1.0).contains(&d_weight) {
+            return Err(ConfigError::Gain {
+                key: "mras_current.d_weight",
+                value: d_weight,
+                min: 0.0,
+                max: 1.0,
+            });
         }
         let mech = gains.kl > 0.0;
         let model = MrasModel::new(motor, base)?;
@@ -228,7 +239,7 @@ impl MrasCurrentConfig {
             off_d: model.off_d,
             off_d_acc: model.off_d_acc,
             off_q_acc: model.off_q_acc,
-            rho2: coef("lq_h", rho * rho, 0.0, 16.0)?,
+            rho2: coef("lq_h", d_weight * rho * rho, 0.0, 16.0)?,
             psi_ld: model.psi_ld,
             xi_scale: model.xi_scale,
             turn_per_speed,

@@ -1,7 +1,8 @@
 //! The adaptation gains of the current-model MRAS and their design (module docs, "Gains").
 
 use super::{
-    DEFAULT_BANDWIDTH_TS, KI_TS_ROOM, LOAD_GAIN_ROOM, LOAD_STEP_LAG_RAD, MAX_DEFAULT_BANDWIDTH_TS,
+    DEFAULT_BANDWIDTH_TS, DEFAULT_D_WEIGHT, KI_TS_ROOM, LOAD_GAIN_ROOM, LOAD_STEP_LAG_RAD,
+    MAX_DEFAULT_BANDWIDTH_TS,
 };
 use crate::params::MotorParams;
 use crate::units::PerUnit;
@@ -22,6 +23,12 @@ pub struct MrasCurrentGains {
     /// sensitivity falls (module docs, "Low-speed schedule"); `false` (the default) keeps them
     /// fixed.
     pub low_speed_schedule: bool,
+    /// The weight of the d-axis error in the tuning signal, relative to eq. 21's: `ξ =
+    /// w (L_q/L_d) i_q ε_d − (L_d/L_q) i_d ε_q − (ψ/L_q) ε_q`, `w` in `[0, 1]` (1: the paper's;
+    /// default 1/2, docs/khlaief2012.md §2 "The d-axis error's weight"). An `f32`: a weight
+    /// needs no more, and it fits the struct's padding, so a drive's configuration keeps its
+    /// size (the Cortex-M0 PIL harness has a few bytes of stack to spare).
+    pub d_weight: f32,
 }
 
 impl MrasCurrentGains {
@@ -44,6 +51,7 @@ impl MrasCurrentGains {
             ki: (wn * wn + 2.0 * wn * wl) / k,
             kl: wn * wn * wl / (a * k),
             low_speed_schedule: false,
+            d_weight: DEFAULT_D_WEIGHT,
         }
     }
 

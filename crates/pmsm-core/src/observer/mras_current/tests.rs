@@ -36,6 +36,43 @@ fn gains_out_of_range_are_named() {
     ));
 }
 
+/// The d-axis error's weight scales `ρ²` in ξ̃ (0 and 1 accepted); outside `[0, 1]`, or not a
+/// number, it is a named error.
+#[test]
+fn the_d_weight_scales_the_d_error_and_is_checked() {
+    let (m, b) = motor_b();
+    let rho = m.lq_h / m.ld_h;
+    for w in [0.0f32, DEFAULT_D_WEIGHT, 1.0] {
+        let g = MrasCurrentGains {
+            d_weight: w,
+            ..MrasCurrentGains::default_for(&m, &b)
+        };
+        let c = MrasCurrentConfig::new(&m, &b, g).unwrap();
+        let want = f64::from(w) * rho * rho;
+        assert!(
+            (c.rho2.to_f64() - want).abs() <= 2e-8,
+            "{w}: {}",
+            c.rho2.to_f64()
+        );
+    }
+    for w in [-0.01f32, 1.01, f32::NAN] {
+        let g = MrasCurrentGains {
+            d_weight: w,
+            ..MrasCurrentGains::default_for(&m, &b)
+        };
+        assert!(
+            matches!(
+                MrasCurrentConfig::new(&m, &b, g),
+                Err(ConfigError::Gain {
+                    key: "mras_current.d_weight",
+                    ..
+                })
+            ),
+            "{w}"
+        );
+    }
+}
+
 fn inverter(vdc_v: f64, full_scale_a: f64) -> InverterParams {
     InverterParams {
         vdc_v,
