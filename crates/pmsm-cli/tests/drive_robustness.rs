@@ -89,6 +89,11 @@ fn the_drive_is_told_its_dead_time_apart_from_the_plant() {
             "dead_time_s = 2e-6\nsign_band_a = -0.1\n",
             "inverter.sign_band_a",
         ),
+        (
+            "deadtime_compensation = true\n",
+            "deadtime_compensation = true\nmras_d_weight = 1.5\n",
+            "control.mras_d_weight",
+        ),
     ] {
         let path = std::env::temp_dir().join(format!(
             "pmsm-drive-robustness-{}-bad.toml",
