@@ -456,9 +456,14 @@ const SALIENT_540V: &str = "duration_s = 2.1\n\
 
 /// `scenario` with `[control] deadtime_current = source`.
 fn with_deadtime_current(scenario: &str, source: &str) -> String {
+    with_control(scenario, &format!("deadtime_current = \"{source}\"\n"))
+}
+
+/// `scenario` with `lines` added to its `[control]` (after `deadtime_compensation = true`).
+fn with_control(scenario: &str, lines: &str) -> String {
     scenario.replace(
         "deadtime_compensation = true\n",
-        &format!("deadtime_compensation = true\ndeadtime_current = \"{source}\"\n"),
+        &format!("deadtime_compensation = true\n{lines}"),
     )
 }
 
@@ -468,9 +473,9 @@ fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
     let with = |source: &str| with_deadtime_current(SALIENT_540V, source);
     // The reference's signs with the current loops at 0.05/T_s (111.4 Hz) and eq. 21's full
     // weight on the MRAS's d-axis error.
-    let former = with("reference").replace(
-        "deadtime_compensation = true\n",
-        "deadtime_compensation = true\ncurrent_bandwidth_hz = 111.4\nmras_d_weight = 1.0\n",
+    let former = with_control(
+        &with("reference"),
+        "current_bandwidth_hz = 111.4\nmras_d_weight = 1.0\n",
     );
     let reference = run_scenario(&scenario_text("salient-540v-reference", &former)).unwrap();
     let no_load = window(&reference.rows, 1.2, 1.46);
@@ -567,9 +572,9 @@ fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
     // reversal held its new direction, the estimate turned with the rotor, which the load
     // drove backwards: `driven_backwards` at the same instant).
     // (With the current loops at 0.05/T_s, 151.2 Hz: at 0.1/T_s the run holds.)
-    let text = with_deadtime_current(SURFACE_320V_NLO, "reference").replace(
-        "deadtime_compensation = true\n",
-        "deadtime_compensation = true\ncurrent_bandwidth_hz = 151.2\n",
+    let text = with_control(
+        &with_deadtime_current(SURFACE_320V_NLO, "reference"),
+        "current_bandwidth_hz = 151.2\n",
     );
     let reference = run_scenario(&scenario_text("surface-320v-nlo-reference", &text)).unwrap();
     let fault = first_fault(&reference.rows).map(|r| (r.fault(), r.t_s));

@@ -37,11 +37,10 @@
 //! (docs/khlaief2012.md §2, "The d-axis error's weight"): the random family holds 9 more of
 //! 800 runs, and (measured with the current loops at `0.05/T_s`) motor B at 1500 r/min under
 //! rated load settles 3–4 times closer with the plant's R at ×1.5 or ×0.7 of its model's. At
-//! `w = 1/ρ²` (the surface motor's cross
-//! product `i_d î_q − i_q î_d`) motor B's no-load speed on the averaged inverter with a hard
-//! sign left its bar; at `w = 0` a resistance error cost more than at `w = 1`. The price: a
-//! slower pull-in at low speed under load, where the saliency's share of the loop's gain is
-//! halved.
+//! `w = 1/ρ²` (the surface motor's cross product `i_d î_q − i_q î_d`) motor B's no-load speed
+//! on the averaged inverter with a hard sign left its bar; at `w = 0` a resistance error cost
+//! more than at `w = 1`. The price: a slower pull-in at low speed under load, where the
+//! saliency's share of the loop's gain is halved.
 //!
 //! # Discretisation
 //!
