@@ -567,19 +567,33 @@ fn the_back_emf_estimators_reverse_under_load_with_the_measured_signs() {
     assert!(rms_angle(&reversed) < 0.02);
     assert!(speed_err(&reversed) < 0.01);
 
-    // The reference's signs: through the open-loop reversal the current leaves its reference
-    // and the NLO turns to the mirror angle; the reversal's handover check trips (before the
-    // reversal held its new direction, the estimate turned with the rotor, which the load
-    // drove backwards: `driven_backwards` at the same instant).
-    // (With the current loops at 0.05/T_s, 151.2 Hz: at 0.1/T_s the run holds.)
+    // Out of the second reversal (its closed loop's first 0.115 s, the reference still
+    // ramping): 0.043 rad rms measured.
+    let back = window(&measured.rows, 4.0, 4.115);
+    assert!(rms_angle(&back) < 0.1, "{}", rms_angle(&back));
+
+    // The reference's signs: through the open-loop reversal the current leaves its reference.
+    // With the current loops at 0.05/T_s (151.2 Hz) and the reversal begun at the sampled
+    // estimated speed the NLO turned to the mirror angle and the reversal's handover check
+    // tripped (`handover` at 3.110 s); begun at the filtered speed it holds, but comes out of
+    // the second reversal 0.20 rad rms off (0.083 with the loops at 0.1/T_s).
     let text = with_control(
         &with_deadtime_current(SURFACE_320V_NLO, "reference"),
         "current_bandwidth_hz = 151.2\n",
     );
     let reference = run_scenario(&scenario_text("surface-320v-nlo-reference", &text)).unwrap();
     let fault = first_fault(&reference.rows).map(|r| (r.fault(), r.t_s));
-    println!("reference signs: fault {fault:?}");
-    assert_eq!(fault.map(|f| f.0), Some("handover"));
+    let back_ref = window(&reference.rows, 4.0, 4.115);
+    println!(
+        "out of the second reversal: measured signs {:.4} rad rms; reference signs {:.4} rad rms, fault {fault:?}",
+        rms_angle(&back),
+        rms_angle(&back_ref)
+    );
+    assert!(
+        fault.is_some() || rms_angle(&back_ref) > 0.15,
+        "{}",
+        rms_angle(&back_ref)
+    );
 }
 
 /// The MRAS on the EMF through the same reversal: its estimate used to lag the rotor as the

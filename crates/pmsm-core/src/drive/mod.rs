@@ -524,7 +524,8 @@ impl Drive {
     }
 
     /// Alignment: a d-axis current along α, the β winding shorted (`startup`); at its end the
-    /// rotor is at `θ = 0`. Then, or after a detection, the dead-time calibration.
+    /// rotor is where the current points. Then, or after a detection, the dead-time
+    /// calibration.
     #[inline(always)]
     fn align(&mut self, i_beta: Pu, vdc: Pu) -> Setpoint {
         let calibrating = self.config.calibration.enabled();
@@ -533,7 +534,7 @@ impl Drive {
         }
         let (theta, i_ref) = self.open_loop.align_frame(&self.config, i_beta);
         if !calibrating && self.open_loop.align_done(&self.config) {
-            self.state = self.rotor_found(Angle::ZERO);
+            self.state = self.rotor_found(self.open_loop.align_angle());
             self.telemetry.estimate = self.estimator.estimate();
         }
         Setpoint::standstill(theta, i_ref)
@@ -659,18 +660,20 @@ impl Drive {
         omega_ref
     }
 
-    /// The reversal of [`Drive::run_speed_ref_step`], out of line. (A rotor that a load
-    /// drives the other way fails that reversal's handover check.)
+    /// The reversal of [`Drive::run_speed_ref_step`], out of line, from the speed loop's
+    /// filtered speed (`startup`, reversal). (A rotor that a load drives the other way fails
+    /// that reversal's handover check.)
     #[cold]
     #[inline(never)]
     fn reverse_open_loop(&mut self, omega_ref: Pu, estimate: &Estimate) {
         let h = self.config.open_loop.handover_speed;
-        if estimate.omega.saturating_abs() > h.saturating_add(h >> 2) {
+        let omega = self.speed_filtered;
+        if omega.saturating_abs() > h.saturating_add(h >> 2) {
             return;
         }
         self.open_loop = OpenLoop::reverse(
             estimate.theta,
-            estimate.omega,
+            omega,
             self.iq_ref,
             omega_ref < Pu::ZERO,
             &self.config,
