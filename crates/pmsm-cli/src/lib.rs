@@ -4,6 +4,7 @@
 pub mod commands;
 pub mod csv_io;
 pub mod motor_file;
+pub mod out;
 pub mod plot;
 pub mod scenario_extras;
 pub mod scenario_file;

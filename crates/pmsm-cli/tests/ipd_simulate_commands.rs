@@ -11,6 +11,21 @@ fn example(name: &str) -> std::path::PathBuf {
         .join(name)
 }
 
+/// `examples/b-800rpm-load.toml` cut to `duration_s`, written to `dir/s.toml`: its path and
+/// text.
+fn motor_b_scenario(dir: &Path, duration_s: f64) -> (std::path::PathBuf, String) {
+    let scenario = dir.join("s.toml");
+    let text = std::fs::read_to_string(example("b-800rpm-load.toml"))
+        .unwrap()
+        .replace("duration_s = 2.0", &format!("duration_s = {duration_s}"))
+        .replace(
+            "motor = \"motor-b.toml\"",
+            &format!("motor = \"{}\"", p(&example("motor-b.toml"))),
+        );
+    std::fs::write(&scenario, &text).unwrap();
+    (scenario, text)
+}
+
 #[test]
 fn ipd_sweep_on_motor_b_is_within_15_degrees_with_the_right_polarity() {
     let dir = scratch("ipd");
@@ -91,15 +106,7 @@ fn ipd_sweep_on_motor_b_is_within_15_degrees_with_the_right_polarity() {
 #[test]
 fn simulate_writes_the_documented_columns_and_names_bad_keys() {
     let dir = scratch("sim");
-    let scenario = dir.join("s.toml");
-    let text = std::fs::read_to_string(example("b-800rpm-load.toml"))
-        .unwrap()
-        .replace("duration_s = 2.0", "duration_s = 0.4")
-        .replace(
-            "motor = \"motor-b.toml\"",
-            &format!("motor = \"{}\"", p(&example("motor-b.toml"))),
-        );
-    std::fs::write(&scenario, &text).unwrap();
+    let (scenario, text) = motor_b_scenario(&dir, 0.4);
     let (out, svg) = (dir.join("o.csv"), dir.join("o.svg"));
     let r = pmsm(&[
         "simulate",
@@ -145,4 +152,34 @@ fn simulate_writes_the_documented_columns_and_names_bad_keys() {
         assert!(err.contains("s.toml") && err.contains(key), "{err}");
     }
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `pmsm simulate … | head`: a reader that closes the pipe before the report is written (here
+/// before the program starts) stops the report, not the command: no panic, exit status 0, and
+/// the CSV (written before the report) and the plot (after it) are both there.
+#[test]
+fn simulate_into_a_closed_pipe_still_writes_its_files() {
+    let dir = scratch("sim-pipe");
+    let (scenario, _) = motor_b_scenario(&dir, 0.05);
+    let (out, svg) = (dir.join("o.csv"), dir.join("o.svg"));
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let r = std::process::Command::new(env!("CARGO_BIN_EXE_pmsm"))
+        .args([
+            "simulate",
+            p(&scenario),
+            "--output",
+            p(&out),
+            "--plot",
+            p(&svg),
+        ])
+        .stdout(writer)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let rows = std::fs::read_to_string(&out).unwrap().lines().count() - 1;
+    assert_eq!(rows, (0.05 * 14000.0) as usize);
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
 }

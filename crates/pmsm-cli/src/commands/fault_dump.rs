@@ -118,12 +118,12 @@ impl Recorder {
 pub fn write_if_faulted(path: Option<&Path>, rec: &Recorder, rows: &[Row]) -> Result<()> {
     let Some(path) = path else { return Ok(()) };
     match rec.write(path, rows)? {
-        Some((fault, n)) => println!(
+        Some((fault, n)) => crate::outln!(
             "  fault dump {} ({n} samples before {}; replay: pmsm observe --voltage held)",
             path.display(),
             fault.name()
         ),
-        None => println!("  fault dump: no fault, {} not written", path.display()),
+        None => crate::outln!("  fault dump: no fault, {} not written", path.display()),
     }
     Ok(())
 }

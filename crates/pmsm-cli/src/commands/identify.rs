@@ -265,13 +265,20 @@ pub fn run(args: &Args) -> Result<()> {
     let name = format!("{} (identified)", truth.name);
     std::fs::write(&args.output, motor_toml(&name, &m))
         .map_err(|e| anyhow!("{}: cannot write: {e}", args.output.display()))?;
-    println!(
+    crate::outln!(
         "pmsm identify: {} at {} V, {} Hz, dead time {} s, limit {limit:.3} A: {:.2} s",
-        truth.name, args.vdc, args.pwm_hz, args.dead_time_s, run.duration_s
+        truth.name,
+        args.vdc,
+        args.pwm_hz,
+        args.dead_time_s,
+        run.duration_s
     );
-    println!(
+    crate::outln!(
         "  {:<10} {:>13} {:>13} {:>9}",
-        "", "identified", "plant", "error"
+        "",
+        "identified",
+        "plant",
+        "error"
     );
     for (key, got, want) in [
         ("rs_ohm", m.rs_ohm, t.rs_ohm),
@@ -286,15 +293,15 @@ pub fn run(args: &Args) -> Result<()> {
         } else {
             "-".to_owned()
         };
-        println!("  {key:<10} {got:>13.5e} {want:>13.5e} {err:>9}");
+        crate::outln!("  {key:<10} {got:>13.5e} {want:>13.5e} {err:>9}");
     }
-    println!(
+    crate::outln!(
         "  distortion voltage {:.3} V, spin at {:.0} and {:.0} rad/s electrical",
         run.identified.distortion_v,
         run.identified.spin_speeds_rad_s[0],
         run.identified.spin_speeds_rad_s[1]
     );
-    println!("  output     {}", args.output.display());
+    crate::outln!("  output     {}", args.output.display());
     if let Some(path) = &args.plot {
         let tr = &run.trace;
         plot::write_svg(
@@ -330,7 +337,7 @@ pub fn run(args: &Args) -> Result<()> {
                 },
             ],
         )?;
-        println!("  plot       {}", path.display());
+        crate::outln!("  plot       {}", path.display());
     }
     Ok(())
 }

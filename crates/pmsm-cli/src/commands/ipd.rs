@@ -126,10 +126,10 @@ pub fn run(args: &Args) -> Result<()> {
     write_csv(&args.output, &detections)?;
     let errors: Vec<f64> = detections.iter().filter_map(Detection::error_deg).collect();
     print_summary(args, &motor.name, &config, &detections, &errors);
-    println!("  output     {}", args.output.display());
+    crate::outln!("  output     {}", args.output.display());
     if let Some(path) = &args.plot {
         draw(path, &motor.name, &detections, &errors)?;
-        println!("  plot       {}", path.display());
+        crate::outln!("  plot       {}", path.display());
     }
     Ok(())
 }
@@ -205,7 +205,7 @@ fn print_summary(
     let faults = detections.len() - errors.len();
     let worst = errors.iter().fold(0.0f64, |a, x| a.max(x.abs()));
     let wrong_polarity = errors.iter().filter(|e| e.abs() >= 90.0).count();
-    println!(
+    crate::outln!(
         "pmsm ipd: {} at {} V, {} Hz, {} angle(s): pulses of {} and {} samples, {} off",
         name,
         args.vdc,
@@ -215,7 +215,7 @@ fn print_summary(
         config.n_long,
         config.n_off
     );
-    println!(
+    crate::outln!(
         "  error      max {worst:.2}° electrical, polarity wrong {wrong_polarity}, faults {faults}{}",
         detections
             .iter()

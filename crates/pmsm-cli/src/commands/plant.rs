@@ -106,7 +106,7 @@ pub fn run(args: &Args) -> Result<()> {
     print_summary(&motor, &trace, p_of(&motor), written, args);
     if let Some(path) = &args.plot {
         draw(path, &motor.name, &trace)?;
-        println!("  plot       {}", path.display());
+        crate::outln!("  plot       {}", path.display());
     }
     Ok(())
 }
@@ -138,20 +138,20 @@ fn print_summary(
     } else {
         "interior"
     };
-    println!(
+    crate::outln!(
         "pmsm plant: {} ({kind}, {p} pole pairs), {rows} rows, {:.4} .. {:.4} s",
         motor.name,
         t.first().copied().unwrap_or(0.0),
         t.last().copied().unwrap_or(0.0)
     );
-    println!("  current    rms {rms:.3} A per phase, peak {peak:.3} A");
-    println!(
+    crate::outln!("  current    rms {rms:.3} A per phase, peak {peak:.3} A");
+    crate::outln!(
         "  speed      final {:.1} r/min, range {:.1} .. {:.1} r/min",
         rpm(wm.last().copied().unwrap_or(0.0)),
         rpm(wmin),
         rpm(wmax)
     );
-    println!("  output     {}", args.output.display());
+    crate::outln!("  output     {}", args.output.display());
 }
 
 fn draw(path: &std::path::Path, name: &str, trace: &[Vec<f64>; 5]) -> Result<()> {

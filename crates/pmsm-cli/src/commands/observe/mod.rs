@@ -100,10 +100,10 @@ pub fn run(args: &Args) -> Result<()> {
         est,
     };
     print_summary(args, &motor.name, &m, &obs);
-    println!("  output     {}", args.output.display());
+    crate::outln!("  output     {}", args.output.display());
     if let Some(path) = &args.plot {
         draw(path, args, &m, &obs)?;
-        println!("  plot       {}", path.display());
+        crate::outln!("  plot       {}", path.display());
     }
     Ok(())
 }

@@ -51,7 +51,7 @@ impl<'a> Truth<'a> {
 pub(super) fn print_summary(args: &Args, name: &str, m: &MotorParams, obs: &Observation) {
     let (data, est, truth) = (&obs.data, &obs.est, &obs.truth);
     let rows = data.rows;
-    println!(
+    crate::outln!(
         "pmsm observe: {:?} (g = {} rad/s) on {name}, {rows} rows at {:.1} Hz, voltage {:?}",
         args.observer,
         obs.gain,
@@ -59,7 +59,7 @@ pub(super) fn print_summary(args: &Args, name: &str, m: &MotorParams, obs: &Obse
         args.voltage
     );
     let last = rows - 1;
-    println!(
+    crate::outln!(
         "  final      θ̂ = {:.4} rad, ω̂ = {:.3} rad/s electrical ({:.1} r/min)",
         est.theta[last],
         est.omega[last],
@@ -70,7 +70,7 @@ pub(super) fn print_summary(args: &Args, name: &str, m: &MotorParams, obs: &Obse
         let tail = &err[half..];
         let rms = (tail.iter().map(|x| x * x).sum::<f64>() / tail.len() as f64).sqrt();
         let max = tail.iter().fold(0.0f64, |a, x| a.max(x.abs()));
-        println!(
+        crate::outln!(
             "  angle err  second half: rms {:.4}°, max {:.4}°",
             rms.to_degrees(),
             max.to_degrees()
@@ -83,7 +83,7 @@ pub(super) fn print_summary(args: &Args, name: &str, m: &MotorParams, obs: &Obse
             .zip(&w[half..])
             .map(|(e, x)| e - x)
             .fold(0.0f64, |a, x| a.max(x.abs()));
-        println!(
+        crate::outln!(
             "  speed err  second half: max {:.4} rad/s = {:.4} % of the largest speed",
             max,
             100.0 * max / scale

@@ -56,7 +56,7 @@ pub fn run(args: &Args) -> Result<()> {
     let result = run_scenario(&sc)?;
     output::write_csv(&args.output, &result.rows)?;
     report::print_summary(&sc, &result);
-    println!("  output     {}", args.output.display());
+    crate::outln!("  output     {}", args.output.display());
     super::fault_dump::write_if_faulted(
         args.fault_dump.as_deref(),
         &result.recorder,
@@ -64,7 +64,7 @@ pub fn run(args: &Args) -> Result<()> {
     )?;
     if let Some(path) = &args.plot {
         draw(path, &sc, &result.rows)?;
-        println!("  plot       {}", path.display());
+        crate::outln!("  plot       {}", path.display());
     }
     Ok(())
 }

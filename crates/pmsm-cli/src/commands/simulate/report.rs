@@ -97,7 +97,7 @@ fn summarise(span_s: (f64, f64), span: &[&Row]) -> Option<Phase> {
 
 /// Prints what was run, the initial position found, one line per phase and the first fault.
 pub(super) fn print_summary(sc: &Scenario, result: &Run) {
-    println!(
+    crate::outln!(
         "pmsm simulate: {} on {}, {:?} estimator, start-up {}, {:.3} s at {:.0} Hz",
         sc.path.display(),
         sc.motor.name,
@@ -108,45 +108,49 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
     );
     if let Some((est, truth)) = result.ipd {
         let err = wrap((est - truth).to_radians()).to_degrees();
-        println!(
+        crate::outln!(
             "  initial position: detected {est:.1}°, true {truth:.1}° (error {err:+.1}° electrical)"
         );
     }
     if (result.deadtime_scale - 1.0).abs() > 1e-9 {
-        println!(
+        crate::outln!(
             "  dead-time compensation: V_dead {:.3} times the one the drive was told (measured at standstill and while running)",
             result.deadtime_scale
         );
     }
     print_phases(&phases(sc, &result.rows));
     if let Some((t, asked, used)) = result.speed_ref_limited {
-        println!(
+        crate::outln!(
             "  speed reference above the maximum speed (above_max_speed) from t = {t:.4} s: \
              {asked:.0} r/min asked, {used:.0} r/min used"
         );
     }
     if let Some(notice) = speed_ref_notice(sc, &result.rows) {
-        println!("  {notice}");
+        crate::outln!("  {notice}");
     }
     if let Some(notice) = current_limit_notice(&result.rows) {
-        println!("  {notice}");
+        crate::outln!("  {notice}");
     }
     if let Some(r) = result
         .rows
         .iter()
         .find(|r| matches!(r.state, DriveState::Fault(_)))
     {
-        println!("  first fault at t = {:.4} s: {:?}", r.t_s, r.state);
+        crate::outln!("  first fault at t = {:.4} s: {:?}", r.t_s, r.state);
     }
 }
 
 fn print_phases(phases: &[Phase]) {
-    println!(
+    crate::outln!(
         "  {:>15} {:>14} {:>9} {:>16} {:>10}  faults",
-        "phase (s)", "speed err", "(%)", "angle err rms/max", "I peak (A)"
+        "phase (s)",
+        "speed err",
+        "(%)",
+        "angle err rms/max",
+        "I peak (A)"
     );
     for ph in phases {
-        println!(
+        crate::outln!(
             "  {:>6.3} – {:>6.3} {:>10.2} rpm {:>9} {:>7.4}/{:<7.4} rad {:>8.2}   {}",
             ph.span_s.0,
             ph.span_s.1,
