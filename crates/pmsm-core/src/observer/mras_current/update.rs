@@ -272,8 +272,9 @@ impl Estimator for MrasCurrent {
             };
             self.i_hat = i_hat;
             // ε = i − î (eq. 16); ξ̃ = (L_q/L_d) ξ = w ρ² i_q ε_d − (i_d + ψ/L_d) ε_q (eq. 21–22
-            // × L_q/L_d: one weight fewer; w the d-axis error's weight, module docs). Each product is below 2^62 in magnitude; halved, their
-            // difference meets the rounding's contract (the dropped bit is 2^-25 LSB).
+            // × L_q/L_d: one weight fewer; w the d-axis error's weight, module docs). Each
+            // product is below 2^62 in magnitude; halved, their difference meets the rounding's
+            // contract (the dropped bit is 2^-25 LSB).
             let e_d = i.d.saturating_sub(i_hat.d);
             let e_q = i.q.saturating_sub(i_hat.q);
             let w_d = coef_mul(c.rho2, i.q);
