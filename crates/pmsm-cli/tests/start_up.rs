@@ -227,3 +227,52 @@ fn the_alignment_takes_the_angle_where_the_current_points() {
     let tail: Vec<&Row> = rows.iter().filter(|r| r.t_s > 0.9).collect();
     assert!(rms_angle(&tail) < 0.05, "{}", rms_angle(&tail));
 }
+
+/// A 320 V, 2 kW surface motor of two pole pairs rated 1055 r/min with a light rotor (47 ms
+/// from rest to rated speed at rated torque), at 14 kHz. At a tenth of its rated speed,
+/// 22 rad/s electrical, the adaptation of the MRAS on the EMF is damped 0.4: handed over
+/// there (`handover_speed_rpm = 105.5`), its estimate swung ±80 r/min about the rotor's at
+/// 33 Hz, the speed loop drove it through zero and the reversal's handover tripped. The
+/// default hands over where it is damped ½ (35 rad/s, 167 r/min), and the ramp to half rated
+/// speed holds.
+#[test]
+fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
+    let run = |extra: &str| {
+        let text = format!(
+            "duration_s = 1.3\n\
+             motor = {{ pole_pairs = 2, rs_ohm = 0.582206, ld_h = 0.016699, lq_h = 0.016699, \
+             flux_wb = 0.518393, j_kg_m2 = 0.00766139, b_nm_s = 0.00342119, \
+             rated_current_a = 8.2398, rated_speed_rpm = 1055 }}\n\
+             [inverter]\nvdc_v = 320.0\npwm_hz = 14000.0\ndead_time_s = 1.06e-6\nmodel = \"switching\"\n\
+             [control]\nobserver = \"mras-emf\"\ndeadtime_compensation = true\n{extra}\
+             [initial]\ntheta_e_deg = 3.451\n\
+             [speed_ref]\nt_s = [0.0, 0.6, 0.693]\nrpm = [0.0, 0.0, 527.5]\n"
+        );
+        run_scenario(&scenario_text("mras-emf-handover", &text))
+            .unwrap()
+            .rows
+    };
+    let rows = run("");
+    if let Some(r) = first_fault(&rows) {
+        panic!("{} at {:.3} s", r.fault(), r.t_s);
+    }
+    let tail: Vec<&Row> = rows.iter().filter(|r| r.t_s > 1.0).collect();
+    let worst = tail
+        .iter()
+        .map(|r| (r.speed_rpm - 527.5).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "damped: speed within {worst:.2} r/min of 527.5, {:.4} rad rms",
+        rms_angle(&tail)
+    );
+    assert!(
+        worst < 10.0 && rms_angle(&tail) < 0.05,
+        "{worst} {}",
+        rms_angle(&tail)
+    );
+    // Handed over at a tenth of rated speed: a fault before the ramp ends.
+    let rows = run("handover_speed_rpm = 105.5\n");
+    let fault = first_fault(&rows).expect("a fault at a tenth of rated speed");
+    println!("at a tenth: {} at {:.3} s", fault.fault(), fault.t_s);
+    assert!(fault.t_s < 0.7, "{}", fault.t_s);
+}

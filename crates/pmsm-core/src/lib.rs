@@ -144,7 +144,8 @@ pub use observer::direction::{
 pub use observer::emf::MIN_EMF_PU;
 pub use observer::mras_emf::{
     ADAPTATION_BANDWIDTH_TS as MRAS_EMF_ADAPTATION_BANDWIDTH_TS,
-    MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU, PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
+    MIN_DAMPING as MRAS_EMF_MIN_DAMPING, MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU,
+    PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
 };
 pub use observer::{
     AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MAX_GAIN_TS,

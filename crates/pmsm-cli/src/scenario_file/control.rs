@@ -106,6 +106,11 @@ pub struct Control {
     /// Khlaief, Boussak, Gossa (2012) eq. 21's, in [0, 1] (`MrasCurrentGains::d_weight`,
     /// docs/khlaief2012.md §2; default `pmsm_core::MrasCurrentGains`'s, 1/2; 1: the paper's).
     pub mras_d_weight: Option<f64>,
+    /// Speed at which a back-EMF estimator takes over from the open-loop start, and the least
+    /// speed it runs at, mechanical r/min (default: a tenth of the rated speed, and with the
+    /// MRAS on the EMF at least where its adaptation is damped ½,
+    /// `pmsm_core::MrasEmfConfig::damped_speed_rad_s`; docs/solsona2000.md §5).
+    pub handover_speed_rpm: Option<f64>,
     /// Current limit of the speed loop, A peak (default: the rated peak current, `√2 ·
     /// rated_current_a`, the per-unit base `I_b`).
     pub current_limit_a: Option<f64>,
@@ -217,6 +222,7 @@ impl Control {
             ("control.speed_bandwidth_hz", self.speed_bandwidth_hz),
             ("control.mras_bandwidth_hz", self.mras_bandwidth_hz),
             ("control.current_limit_a", self.current_limit_a),
+            ("control.handover_speed_rpm", self.handover_speed_rpm),
             ("control.model_rs_factor", self.model_rs_factor),
             ("control.model_l_factor", self.model_l_factor),
             ("control.model_flux_factor", self.model_flux_factor),

@@ -87,7 +87,8 @@ pub struct OpenLoopDesign {
 impl OpenLoopDesign {
     /// Rated peak current (the per-unit base); an acceleration that takes 20 % of the torque
     /// that current makes, `0.2 p K_T I / J`; handover at 10 % of the rated electrical speed
-    /// (or of the base speed); alignment over 0.5 s.
+    /// (or of the base speed; [`DriveDesign::default_for`] raises it for the MRAS on the EMF
+    /// to [`MrasEmfConfig::damped_speed_rad_s`] where that is higher); alignment over 0.5 s.
     pub fn default_for(motor: &MotorParams, base: &PerUnit) -> Self {
         let rated_e = rated_e_rad_s(motor, base);
         Self {
@@ -317,7 +318,19 @@ impl DriveDesign {
             },
             ipd: IpdDesign::default(),
             startup: StartupMode::Auto,
-            open_loop: OpenLoopDesign::default_for(motor, base),
+            open_loop: {
+                // The MRAS on the EMF hands over where its adaptation is damped ½: at a
+                // tenth of rated speed on a motor of two pole pairs rated near 1000 r/min its
+                // estimate swung about the rotor's until the speed loop drove it through zero
+                // (docs/solsona2000.md §5).
+                let mut d = OpenLoopDesign::default_for(motor, base);
+                if estimator == EstimatorKind::MrasEmf {
+                    d.handover_speed_rad_s = d
+                        .handover_speed_rad_s
+                        .max(MrasEmfConfig::damped_speed_rad_s(base));
+                }
+                d
+            },
             protection: Protection::default_for(inverter, base),
             flux: FluxDesign::default(),
             overmodulation: false,
@@ -801,5 +814,48 @@ mod tests {
             StartupMode::Known(Angle::ZERO).resolve(&b, &base, &ipd),
             StartupMode::Known(Angle::ZERO)
         );
+    }
+
+    /// The MRAS on the EMF hands over where its adaptation's loop `s² + (|ω|/c3) s + ψ² c2 |ω|`
+    /// (the constants `MrasEmfConfig::default_for` designs) is damped at least ½: at a tenth of
+    /// rated speed where that is fast enough (motor B at 14 kHz: ζ = 0.82), at the damped
+    /// speed on a slow motor (two pole pairs, 1055 r/min: ζ = 0.40 at a tenth); the other
+    /// estimators hand over at a tenth.
+    #[test]
+    fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
+        let handover = |m: &MotorParams, inv: &InverterParams, kind| {
+            let base = PerUnit::new(m, inv, inv.pwm_hz).unwrap();
+            let d = DriveDesign::default_for(m, inv, &base, kind);
+            let w = d.open_loop.handover_speed_rad_s;
+            let c = MrasEmfConfig::default_for(m, &base, default_observer_gain(m, &base)).unwrap();
+            let [_, c2, c3] = c.constants;
+            let zeta = (w / c3) / (2.0 * (m.flux_wb * m.flux_wb * c2 * w).sqrt());
+            (w / rated_e_rad_s(m, &base), zeta)
+        };
+        let (b, inv_b) = (motor_b(), inverter_b());
+        let (share, zeta) = handover(&b, &inv_b, EstimatorKind::MrasEmf);
+        assert!(
+            (share - 0.1).abs() < 1e-12 && (zeta - 0.82).abs() < 0.01,
+            "{share} {zeta}"
+        );
+        let mut slow = MotorParams::new(2, 0.5822, 0.016699, 0.016699, 0.51839, 0.0076614, 0.0034);
+        slow.rated_speed_rpm = Some(1055.0);
+        slow.rated_current_a = Some(8.24);
+        let inv = InverterParams {
+            vdc_v: 320.0,
+            pwm_hz: 14e3,
+            dead_time_s: 1.06e-6,
+            current_full_scale_a: 30.0,
+        };
+        let (share, zeta) = handover(&slow, &inv, EstimatorKind::MrasEmf);
+        assert!((zeta - crate::MRAS_EMF_MIN_DAMPING).abs() < 1e-9, "{zeta}");
+        assert!(share > 0.15 && share < 0.17, "{share}");
+        for kind in [EstimatorKind::Ao, EstimatorKind::Nlo] {
+            let (share, zeta) = handover(&slow, &inv, kind);
+            assert!(
+                (share - 0.1).abs() < 1e-12 && zeta < 0.41,
+                "{kind:?}: {share} {zeta}"
+            );
+        }
     }
 }

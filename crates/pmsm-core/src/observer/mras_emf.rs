@@ -64,6 +64,9 @@ pub const MIN_SPEED_PU: f64 = 0.005;
 /// the random family: 274 of 301 runs held against 272 at 0.02, 271 at 0.03, 251 at 0.06
 /// (docs/solsona2000.md §5).
 pub const ADAPTATION_BANDWIDTH_TS: f64 = 0.025;
+/// Least damping ratio of the drive's adaptation at its handover speed
+/// ([`MrasEmfConfig::damped_speed_rad_s`]).
+pub const MIN_DAMPING: f64 = 0.5;
 
 /// Configuration of the [`MrasEmf`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -134,6 +137,18 @@ impl MrasEmfConfig {
         .normalised_integral(base)?;
         c.ao = c.ao.lag_compensated(base)?;
         Ok(c)
+    }
+
+    /// The electrical speed, rad/s, above which the adaptation of [`MrasEmfConfig::default_for`]
+    /// is damped at least [`MIN_DAMPING`]: its loop `s² + (|ω|/c3) s + ψ² c2 |ω|`
+    /// (docs/solsona2000.md §5) has the damping ratio `ζ = √(|ω| T_s/(4 a c3))`, `a` =
+    /// [`ADAPTATION_BANDWIDTH_TS`], which falls with the speed: `4 a c3 ζ²/T_s`. 35 rad/s at
+    /// 14 kHz; a 320 V motor of two pole pairs rated 1055 r/min hands over at a tenth of its
+    /// rated speed, 22 rad/s, where `ζ = 0.4`, and its estimate swung ±80 r/min about the
+    /// rotor's at 33 Hz until the speed loop drove it through zero.
+    pub fn damped_speed_rad_s(base: &PerUnit) -> f64 {
+        let c3 = PAPER_CONSTANTS[2].max(base.omega_e_rad_s * base.sample_s);
+        4.0 * ADAPTATION_BANDWIDTH_TS * c3 * MIN_DAMPING * MIN_DAMPING / base.sample_s
     }
 
     /// The same constants with `ε/ω̂_AO` integrated instead of `ε` (module docs, "the drive's

@@ -217,6 +217,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     if let Some(w) = c.mras_d_weight {
         design.mras_current.d_weight = w as f32;
     }
+    if let Some(rpm) = c.handover_speed_rpm {
+        design.open_loop.handover_speed_rad_s = rpm * TAU / 60.0 * model.p();
+    }
     if let Some(a) = c.current_limit_a {
         design.speed.current_limit_a = a;
         design.open_loop.current_a = design.open_loop.current_a.min(a);
