@@ -30,6 +30,9 @@
 //! speed_loop = "pi"                # "ip" or "pi": a ramp followed without lag (default: the
 //!                                  # drive's, the reference weighed by a half with the
 //!                                  # current-model MRAS; or speed_reference_weight = 0..1)
+//! handover_speed_rpm = 150.0       # where a back-EMF estimator takes over from the open
+//!                                  # loop, and its least speed (default: a tenth of rated
+//!                                  # speed, the MRAS on the EMF where its adaptation is damped)
 //! low_speed_id_a = 0.0             # the positive d current held at low speed (default: the
 //!                                  # current limit, faded out at a fifth of rated speed)
 //! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
@@ -211,5 +214,9 @@ mod tests {
         );
         assert!(err(&format!("{BASE}[control2]\nx = 1\n")).contains("control2"));
         assert!(err(&BASE.replace("rs_ohm = 7.2", "rs_ohm = 0.0")).contains("`rs_ohm`"));
+        assert!(
+            err(&format!("{BASE}handover_speed_rpm = 0.0\n"))
+                .contains("`control.handover_speed_rpm` must be greater than zero")
+        );
     }
 }
