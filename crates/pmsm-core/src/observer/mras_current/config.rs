@@ -158,8 +158,8 @@ impl MrasCurrentConfig {
                 });
             }
         }
-        // Apart from the gains' loop: a fourth entry there deepened this frame, which the
-        // Cortex-M0 PIL harness (12 bytes of stack to spare) could not take.
+        // Apart from the gains' loop: a fourth entry there deepened this frame (measured on
+        // the Cortex-M0 PIL harness's stack, then 12 bytes short of the micro:bit's RAM).
         let d_weight = f64::from(gains.d_weight);
         if !(0.0..=1.0).contains(&d_weight) {
             return Err(ConfigError::Gain {

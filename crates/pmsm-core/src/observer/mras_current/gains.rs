@@ -27,7 +27,7 @@ pub struct MrasCurrentGains {
     /// w (L_q/L_d) i_q ε_d − (L_d/L_q) i_d ε_q − (ψ/L_q) ε_q`, `w` in `[0, 1]` (1: the paper's;
     /// default 1/2, docs/khlaief2012.md §2 "The d-axis error's weight"). An `f32`: a weight
     /// needs no more, and it fits the struct's padding, so a drive's configuration keeps its
-    /// size (the Cortex-M0 PIL harness has a few bytes of stack to spare).
+    /// size (the micro:bit's 16 KiB hold the Cortex-M0 PIL harness's stack).
     pub d_weight: f32,
 }
 
