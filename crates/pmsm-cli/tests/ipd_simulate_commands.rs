@@ -103,19 +103,24 @@ fn ipd_sweep_on_motor_b_is_within_15_degrees_with_the_right_polarity() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `pmsm simulate SCENARIO --output OUT --plot SVG`'s arguments.
+fn simulate_args<'a>(scenario: &'a Path, out: &'a Path, svg: &'a Path) -> [&'a str; 6] {
+    [
+        "simulate",
+        p(scenario),
+        "--output",
+        p(out),
+        "--plot",
+        p(svg),
+    ]
+}
+
 #[test]
 fn simulate_writes_the_documented_columns_and_names_bad_keys() {
     let dir = scratch("sim");
     let (scenario, text) = motor_b_scenario(&dir, 0.4);
     let (out, svg) = (dir.join("o.csv"), dir.join("o.svg"));
-    let r = pmsm(&[
-        "simulate",
-        p(&scenario),
-        "--output",
-        p(&out),
-        "--plot",
-        p(&svg),
-    ]);
+    let r = pmsm(&simulate_args(&scenario, &out, &svg));
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(
@@ -165,14 +170,7 @@ fn simulate_into_a_closed_pipe_still_writes_its_files() {
     let (reader, writer) = std::io::pipe().unwrap();
     drop(reader);
     let r = std::process::Command::new(env!("CARGO_BIN_EXE_pmsm"))
-        .args([
-            "simulate",
-            p(&scenario),
-            "--output",
-            p(&out),
-            "--plot",
-            p(&svg),
-        ])
+        .args(simulate_args(&scenario, &out, &svg))
         .stdout(writer)
         .output()
         .unwrap();

@@ -65,8 +65,8 @@
 //! motor that is far from zero (0.40 Ω on 540 V with 2.87 µs of dead time: 13 A of β current
 //! beside 28 A on α, the rotor 0.5 rad off). The alignment therefore ends at the current's
 //! angle, `atan2(i_β, I)`, from the last sample's `i_β` (the swing is damped out by then, and
-//! the last sample needs no state); exact at rest without load (a load holding the rotor would leave it off by
-//! the load angle, as `θ = 0` did).
+//! the last sample needs no state); exact at rest without load (a load holding the rotor would
+//! leave it off by the load angle, as `θ = 0` did).
 
 use super::Fault;
 use super::config::DriveConfig;

@@ -68,6 +68,12 @@ pub const ADAPTATION_BANDWIDTH_TS: f64 = 0.025;
 /// ([`MrasEmfConfig::damped_speed_rad_s`]).
 pub const MIN_DAMPING: f64 = 0.5;
 
+/// `c3` of [`MrasEmfConfig::default_for`]: the paper's, at least `ω_b T_s` (a pull step of at
+/// most 1 at base speed; docs/solsona2000.md §5).
+fn default_c3(base: &PerUnit) -> f64 {
+    PAPER_CONSTANTS[2].max(base.omega_e_rad_s * base.sample_s)
+}
+
 /// Configuration of the [`MrasEmf`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MrasEmfConfig {
@@ -124,9 +130,9 @@ impl MrasEmfConfig {
         base: &PerUnit,
         ao_gain_rad_s: f64,
     ) -> Result<Self, ConfigError> {
-        let [c1, c2, c3] = PAPER_CONSTANTS;
+        let [c1, c2, _] = PAPER_CONSTANTS;
         let psi = crate::params::positive("flux_wb", motor.flux_wb)?;
-        let c3 = c3.max(base.omega_e_rad_s * base.sample_s);
+        let c3 = default_c3(base);
         let c2_motor = ADAPTATION_BANDWIDTH_TS / base.sample_s / (psi * psi * c3);
         let mut c = Self::new(
             motor,
@@ -147,7 +153,7 @@ impl MrasEmfConfig {
     /// rated speed, 22 rad/s, where `ζ = 0.4`, and its estimate swung ±80 r/min about the
     /// rotor's at 33 Hz until the speed loop drove it through zero.
     pub fn damped_speed_rad_s(base: &PerUnit) -> f64 {
-        let c3 = PAPER_CONSTANTS[2].max(base.omega_e_rad_s * base.sample_s);
+        let c3 = default_c3(base);
         4.0 * ADAPTATION_BANDWIDTH_TS * c3 * MIN_DAMPING * MIN_DAMPING / base.sample_s
     }
 

@@ -23,8 +23,8 @@ use pmsm_core::{
 };
 use pmsm_core::{DeadTimeConfig, DeadTimeDesign};
 use pmsm_core::{
-    Drive, DriveInput, DriveOutput, EstimatorKind, FluxConfig, FluxController, FluxDesign,
-    StartupMode,
+    Drive, DriveDesign, DriveInput, DriveOutput, EstimatorKind, FluxConfig, FluxController,
+    FluxDesign, StartupMode,
 };
 use pmsm_core::{Identify, IdentifyConfig, IdentifyDesign, IdentifyOutput};
 use pmsm_core::{Ipd, IpdConfig, IpdDesign, IpdOutput};
@@ -301,13 +301,21 @@ fn bench_designed_drive(
 /// went into steps with the voltage on the circle that cost up to 1808 instructions on the
 /// Cortex-M4 and 5107 on the Cortex-M0.)
 fn drive_with_flux() -> Option<Drive> {
+    started_drive(|design, _| {
+        design.flux = FluxDesign::ON;
+        design.speed.decimation = 2;
+    })
+}
+
+/// The `drive` case's drive (motor B, current-model MRAS, detection) with `edit` applied to
+/// its design, started.
+fn started_drive(edit: fn(&mut DriveDesign, &Setup)) -> Option<Drive> {
     let b = Setup::motor_b().ok()?;
     let mut design = b
         .drive(EstimatorKind::MrasCurrent, StartupMode::Ipd)
         .ok()?
         .design;
-    design.flux = FluxDesign::ON;
-    design.speed.decimation = 2;
+    edit(&mut design, &b);
     let mut d = Drive::new(b.config(design).ok()?);
     d.start();
     Some(d)
@@ -320,15 +328,7 @@ fn drive_with_flux() -> Option<Drive> {
 /// none at the recorded bus): the cost of a saturated step, which the recorded run never
 /// reaches.
 fn drive_on_low_bus() -> Option<Drive> {
-    let b = Setup::motor_b().ok()?;
-    let mut design = b
-        .drive(EstimatorKind::MrasCurrent, StartupMode::Ipd)
-        .ok()?
-        .design;
-    design.protection.vdc_min_v = 0.2 * b.inverter.vdc_v;
-    let mut d = Drive::new(b.config(design).ok()?);
-    d.start();
-    Some(d)
+    started_drive(|design, b| design.protection.vdc_min_v = 0.2 * b.inverter.vdc_v)
 }
 
 /// The bus reading of [`drive_on_low_bus`]'s benchmark, eighths of the recorded one.
