@@ -447,7 +447,7 @@ impl BusReciprocal {
     /// last reading, else computed and stored (a reading `≤ 0`, which the modulator never
     /// passes, gives 0).
     #[inline]
-    fn get(&mut self, vdc: Pu, m: &SvpwmConfig) -> Self {
+    pub(crate) fn get(&mut self, vdc: Pu, m: &SvpwmConfig) -> Self {
         let bits = vdc.to_bits();
         // The empty cache's reading, 0, is below any bus the modulator passes here.
         if bits != self.vdc {
@@ -458,6 +458,12 @@ impl BusReciprocal {
             };
         }
         *self
+    }
+
+    /// The reading's [`Reciprocal`] (zero for a reading `≤ 0`).
+    #[inline(always)]
+    pub(crate) fn recip(&self) -> Reciprocal {
+        self.recip
     }
 
     /// `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`], rounded and saturated; exact to the

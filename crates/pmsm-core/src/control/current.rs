@@ -27,16 +27,21 @@
 //! measured bus and a margin `m ≤ 1` ([`CurrentDesign::modulation`]). d is limited to
 //! `±V_max`, then q to `±√(V_max² − v_d²)`: the d axis, which sets the flux and (at
 //! `i_d* = 0`) needs little voltage, keeps its authority, and the q axis gets what is left.
-//! Each PI sees its own axis limit, so its anti-windup (conditional integration and integrator
+//! Each PI sees its own axis limit, so its anti-windup (back-calculation and integrator
 //! clamping, [`super::pi`]) acts exactly when the vector reaches the circle; SVPWM then never
 //! has to shorten the vector itself. If it does (dead-time compensation added after this
 //! stage, or a bus drop between the two), its `saturated` flag is fed back as
 //! [`CurrentInput::hold`] and stops both integrators from winding outward.
 //!
-//! The root is exact ([`circle_room`], `⌊√·⌋` to the LSB, a fixed ~60 instructions on a
-//! Cortex-M4) and is taken only when the q axis comes near the circle: the q PI first steps
+//! The room needs no root: it is `V_max √(1 − t²)` with `t = |v_d|/V_max`, a fraction of the
+//! bus from the bus's reciprocal (which the drive keeps from one reading to the next) times
+//! `√3/m`, interpolated on the arc from inside ([`super::arc_room`]): never beyond the circle,
+//! short of it by at most `10⁻⁴ V_max` for `t ≤ ½`, `5·10⁻⁴ V_max` for `t ≤ 0.9` (an exact
+//! root cost the saturated step ~130 instructions on a Cortex-M4, some 400 on a Cortex-M0).
+//! It is read only when the q axis comes near the circle: the q PI first finishes its step
 //! with the inner bound `V_max − |v_d|` (`(V_max − |v_d|)² ≤ V_max² − v_d²`), and only if a
-//! limit took part (`Pi::eval`) steps again from the saved state with the root.
+//! limit took part (`Pi::finish`) again with the room, from the same products (`Pi::prepare`);
+//! an output beyond the bound before the limits goes to the room at once.
 //!
 //! # Formats
 //!
@@ -54,10 +59,10 @@
 
 use super::gain_in;
 use super::pi::{Pi, PiConfig, coef_in};
-use super::{circle_room, frac_mul};
+use super::{arc_room, frac_mul};
 use crate::error::ConfigError;
 use crate::frames::Dq;
-use crate::num::{Coef, Pu, mul, pu_from_f64};
+use crate::num::{Coef, Pu, Reciprocal, mul, pu_from_f64};
 use crate::params::{MotorParams, in_range};
 use crate::units::PerUnit;
 
@@ -93,6 +98,9 @@ impl CurrentDesign {
 /// Default `ω_c T_s`: 1400 rad/s at 14 kHz, a decade below the sampling limit.
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.1;
 
+/// Binary point of `√3/m` (at most 1732 for the least `m`, 10⁻³).
+const VDC_PER_VMAX_FRAC: u32 = 20;
+
 /// Configuration of the [`CurrentController`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentConfig {
@@ -106,6 +114,8 @@ pub struct CurrentConfig {
     psi: Pu,
     /// `m/√3`: `V_max = m/√3 · v_DC` (both per unit of `V_b`).
     vmax_per_vdc: Coef<31>,
+    /// `√3/m`, rounded up: `x/V_max = x/v_DC · √3/m`, from the bus's reciprocal.
+    vdc_per_vmax: Coef<VDC_PER_VMAX_FRAC>,
     decoupling: bool,
     /// The design it was built from (SI), for reports.
     pub design: CurrentDesign,
@@ -183,6 +193,11 @@ impl CurrentConfig {
                 true,
                 1.0,
             )?,
+            // √3/m ≤ √3/10⁻³ < 2¹¹: it fits; rounded up so that x/V_max is never short.
+            vdc_per_vmax: Coef::from_bits(libm::ceil(libm::ldexp(
+                libm::sqrt(3.0) / m,
+                VDC_PER_VMAX_FRAC as i32,
+            )) as i32),
             decoupling: design.decoupling,
             design,
             gains_si: [kp_d, ki_d, kp_q, ki_q],
@@ -256,6 +271,19 @@ impl CurrentController {
     /// One control sample. Integer only; never panics; a bus at or below zero gives a zero
     /// voltage and both `saturated` flags.
     pub fn step(&mut self, input: &CurrentInput) -> CurrentOutput {
+        self.step_on(input, Reciprocal::default())
+    }
+
+    /// [`CurrentController::step`] with the reciprocal of the bus reading `input.vdc` given
+    /// (the drive keeps it from one reading to the next), or zero to take it here when the
+    /// arc is read. Inlined into the drive, except on the Cortex-M0, where the call costs
+    /// fewer instructions than its inlined copy's registers (`scripts/pil.sh`: 3930 against
+    /// 3912 for the drive's step, where the drive passes it the bus's reciprocal).
+    #[cfg_attr(
+        not(all(target_arch = "arm", not(target_has_atomic = "32"))),
+        inline(always)
+    )]
+    pub(crate) fn step_on(&mut self, input: &CurrentInput, inv_vdc: Reciprocal) -> CurrentOutput {
         let c = &self.config;
         let vdc = input.vdc.max(Pu::ZERO);
         // m/√3 < 1 and vdc ≥ 0: the product cannot saturate.
@@ -274,17 +302,39 @@ impl CurrentController {
         // v_max ≥ 0 (a non-negative coefficient of a non-negative bus).
         let (d, _, integ_d) = self.pi_d.eval(e_d, ff_d, v_max, input.hold);
         self.pi_d.commit(integ_d);
-        // The q limit is the room left on the circle, √(V_max² − v_d²) (a square root). It
-        // is at least V_max − |v_d| (as (V_max − |v_d|)² ≤ V_max² − v_d²), and when the q PI
-        // stays strictly inside that bound its step is the same for the exact limit (see
-        // `Pi::eval`): the root is taken only when the q axis comes near the circle.
+        // The q limit is the room left on the circle, √(V_max² − v_d²). It is at least
+        // V_max − |v_d| (as (V_max − |v_d|)² ≤ V_max² − v_d²), and when the q PI stays
+        // strictly inside that bound its step is the same for the room itself (see
+        // `Pi::eval`): the arc is read only when the q axis comes near the circle, and the
+        // step is finished with the bound only when its output before the limits is inside.
         // |v_d| ≤ v_max: the difference is in [0, v_max], no saturation needed.
-        let lower = Pu::from_bits(v_max.to_bits() - d.u.to_bits().wrapping_abs());
-        let (mut q, inside, mut integ) = self.pi_q.eval(e_q, ff_q, lower, input.hold);
-        if !inside {
-            let room = circle_room(v_max, d.u);
-            (q, _, integ) = self.pi_q.eval(e_q, ff_q, room, input.hold);
+        let x = d.u.to_bits().wrapping_abs();
+        let lower = Pu::from_bits(v_max.to_bits() - x);
+        let terms = self.pi_q.prepare(e_q, ff_q);
+        let mut within = None;
+        if terms.raw_abs() < lower.to_bits() as u32 {
+            let (q, inside, integ) = self.pi_q.finish(&terms, lower, input.hold);
+            if inside {
+                within = Some((q, integ));
+            }
         }
+        let (q, integ) = match within {
+            Some(q) => q,
+            None => {
+                // |v_d|/V_max in Q2.30 (|v_d| ≤ V_max < v_DC, a fraction of the bus), from the
+                // bus's reciprocal (if not given, a 32-bit division and two Newton steps, on
+                // this path only).
+                let inv_vdc = if inv_vdc.is_zero() {
+                    Reciprocal::of(vdc.to_bits())
+                } else {
+                    inv_vdc
+                };
+                let t = c.vdc_per_vmax.apply_bits(inv_vdc.fraction(x));
+                let room = arc_room(v_max, t).max(lower);
+                let (q, _, integ) = self.pi_q.finish(&terms, room, input.hold);
+                (q, integ)
+            }
+        };
         self.pi_q.commit(integ);
         CurrentOutput {
             v: Dq { d: d.u, q: q.u },

@@ -125,6 +125,28 @@ pub struct PiOutput {
     pub saturated: bool,
 }
 
+/// The terms of a [`Pi`] step that do not depend on its limits ([`Pi::prepare`]), bits of
+/// [`Pu`] and the integrator's increment `K_i T_s e` (Q8.56).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PiTerms {
+    e: i32,
+    ff: i32,
+    /// `ff + K_p e`.
+    pf: i32,
+    /// `u_raw = ff + K_p e + I`.
+    raw: i32,
+    inc: i64,
+}
+
+impl PiTerms {
+    /// `|u_raw|`, the output before the limits and before this step's integration: a caller
+    /// tells from it, without a [`Pi::finish`], whether a limit can be far.
+    #[inline(always)]
+    pub(crate) fn raw_abs(&self) -> u32 {
+        self.raw.unsigned_abs()
+    }
+}
+
 /// Gains of a [`Pi`], per unit (back-calculation; `K_p > 0`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PiConfig {
@@ -212,25 +234,49 @@ impl Pi {
     }
 
     /// The step without its state update, for limits `±m` with `m ≥ 0` (a negative `m` acts
-    /// as 0): the output, whether no limit took part (then the step
-    /// is bit for bit the same for any wider limits), and the new integral state (for
-    /// [`Pi::commit`]). A caller with a costly exact limit evaluates with a cheap inner
-    /// bound first, and again with the exact limit only when the second value is false.
+    /// as 0): the output, whether no limit took part (then the step is bit for bit the same
+    /// for any wider limits), and the new integral state (for [`Pi::commit`]).
     #[inline(always)]
     pub(crate) fn eval(&self, e: Pu, ff: Pu, m: Pu, hold: bool) -> (PiOutput, bool, i64) {
+        self.finish(&self.prepare(e, ff), m, hold)
+    }
+
+    /// The part of a step that does not depend on the limits: a caller with a costly exact
+    /// limit [`Pi::finish`]es with a cheap inner bound first, and again with the exact limit
+    /// only when a limit took part, without forming the products twice.
+    #[inline(always)]
+    pub(crate) fn prepare(&self, e: Pu, ff: Pu) -> PiTerms {
         let c = self.config;
-        let (eb, ffb) = (e.to_bits(), ff.to_bits());
-        let hi = m.to_bits().max(0);
-        let lo = -hi;
+        let (e, ff) = (e.to_bits(), ff.to_bits());
         // ff + K_p e (one rounding of the exact product, saturated), then + I rounded: two
         // roundings, within 1 LSB of the exact sum (f64 tests: drive_parts_loops).
-        let pf = c.kp.apply_bits(eb).saturating_add(ffb);
-        let raw = pf.saturating_add(integ_to_pu(self.integ));
+        let pf = c.kp.apply_bits(e).saturating_add(ff);
+        PiTerms {
+            e,
+            ff,
+            pf,
+            raw: pf.saturating_add(integ_to_pu(self.integ)),
+            // |K_i T_s e| < 2⁶² (K_i T_s < ½).
+            inc: c.ki_ts.wide(e),
+        }
+    }
+
+    /// [`Pi::eval`] from the terms of [`Pi::prepare`].
+    #[inline(always)]
+    pub(crate) fn finish(&self, t: &PiTerms, m: Pu, hold: bool) -> (PiOutput, bool, i64) {
+        let c = self.config;
+        let PiTerms {
+            e: eb,
+            ff: ffb,
+            pf,
+            raw,
+            mut inc,
+        } = *t;
+        let hi = m.to_bits().max(0);
+        let lo = -hi;
         // lo < raw < hi, with |raw| taken without overflow.
         let raw_inside = raw.unsigned_abs() < hi as u32;
         let (up, down) = (eb > 0, eb < 0);
-        // |K_i T_s e| < 2⁶² (K_i T_s < ½).
-        let mut inc = c.ki_ts.wide(eb);
         if !raw_inside {
             // Back-calculation k_t (clamp(u_raw) − u_raw), bounded to ±32 pu so that
             // |4 k_t excess| ≤ 2⁶¹ (k_t ≤ 1) and the sum stays below 2⁶³; zero inside the

@@ -808,13 +808,18 @@ impl Drive {
             Some(f) => f.i_dq,
             None => park(i, theta.sin_cos()),
         };
-        let out = self.current.step(&CurrentInput {
-            i_ref,
-            i: i_dq,
-            omega,
-            vdc,
-            hold: self.telemetry.saturated,
-        });
+        // The bus terms first: the current loops share their reciprocal with the modulator.
+        let inv_vdc = self.inv_vdc.get(vdc, &self.config.svpwm).recip();
+        let out = self.current.step_on(
+            &CurrentInput {
+                i_ref,
+                i: i_dq,
+                omega,
+                vdc,
+                hold: self.telemetry.saturated,
+            },
+            inv_vdc,
+        );
         // The voltage acts over the coming period: rotate it to the frame's mid-period angle.
         // With the estimator's two frames, their mean points there exactly, at a length
         // cos(ω T_s/2) (0.9993 at 1 pu on motor B): a gain the current loops take up, while the

@@ -223,6 +223,12 @@ impl Reciprocal {
         })
     }
 
+    /// The zero reciprocal (of a divisor `≤ 0`, or the default).
+    #[inline(always)]
+    pub fn is_zero(self) -> bool {
+        self.r == 0
+    }
+
     /// `x/d` in Q2.30 (`x · 2³⁰/d`), rounded and saturated.
     #[inline(always)]
     pub fn fraction(self, x: i32) -> i32 {
