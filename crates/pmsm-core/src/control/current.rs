@@ -276,9 +276,9 @@ impl CurrentController {
 
     /// [`CurrentController::step`] with the reciprocal of the bus reading `input.vdc` given
     /// (the drive keeps it from one reading to the next), or zero to take it here when the
-    /// arc is read. Inlined into the drive, except on the Cortex-M0, where the call costs
-    /// fewer instructions than its inlined copy's registers (`scripts/pil.sh`: 3930 against
-    /// 3912 for the drive's step, where the drive passes it the bus's reciprocal).
+    /// arc is read. Inlined into the drive, except on the Cortex-M0: there the inlined copy
+    /// beside the public step's ran the processor-in-the-loop image 260 bytes over the
+    /// micro:bit's flash (`scripts/pil.sh`).
     #[cfg_attr(
         not(all(target_arch = "arm", not(target_has_atomic = "32"))),
         inline(always)
