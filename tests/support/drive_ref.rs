@@ -331,13 +331,18 @@ pub fn rpm_to_omega_e(rpm: f64, p: u32) -> f64 {
 // ---------------------------------------------------------------------------------------------
 
 /// Float64 SVPWM by min–max injection: `v` (V or pu) on bus `vdc` (same unit) with margin `m`.
-/// Returns the duties, the vector after the circle limit `m V_DC/√3`, and whether it was
+/// Returns the duties, the vector after the hexagon's limit (the legs' span `max − min` at
+/// most `m V_DC`, beyond it the vector scaled onto it keeping its angle), and whether it was
 /// limited.
 pub fn svpwm_ref(v: [f64; 2], vdc: f64, m: f64) -> ([f64; 3], [f64; 2], bool) {
-    let vmax = m * vdc / SQRT3;
-    let mag = v[0].hypot(v[1]);
-    let (v, sat) = if mag > vmax {
-        ([v[0] * vmax / mag, v[1] * vmax / mag], true)
+    let span = |v: [f64; 2]| {
+        let ph = pmsm_plant::inverse_clarke(v);
+        ph[0].max(ph[1]).max(ph[2]) - ph[0].min(ph[1]).min(ph[2])
+    };
+    let s = span(v);
+    let (v, sat) = if s > m * vdc {
+        let k = m * vdc / s;
+        ([v[0] * k, v[1] * k], true)
     } else {
         (v, false)
     };
@@ -346,6 +351,16 @@ pub fn svpwm_ref(v: [f64; 2], vdc: f64, m: f64) -> ([f64; 3], [f64; 2], bool) {
     let lo = ph[0].min(ph[1]).min(ph[2]);
     let v0 = -(hi + lo) / 2.0;
     (ph.map(|x| 0.5 + (x + v0) / vdc), v, sat)
+}
+
+/// The hexagon's radius in the direction `phi` (rad) for bus `vdc` and margin `m`: the length
+/// at which the legs' span reaches `m V_DC` (`m V_DC/√3` at the sides' midpoints, `2 m V_DC/3`
+/// at the vertices).
+pub fn hexagon_radius(phi: f64, vdc: f64, m: f64) -> f64 {
+    // Angle from the nearest side's normal (30° + k 60°), in [−30°, 30°].
+    let sixth = std::f64::consts::FRAC_PI_3;
+    let off = phi.rem_euclid(sixth) - sixth / 2.0;
+    m * vdc / (SQRT3 * off.cos())
 }
 
 /// The αβ voltage an ideal inverter makes from duties `d` on bus `vdc` (Clarke of `d_x V_DC`).

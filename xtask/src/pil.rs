@@ -87,10 +87,10 @@ pub fn section() -> String {
         s.push_str(&format!(
             "With the voltage on the circle (`drive_step_saturated`: the default drive on the \
              same inputs with the bus read at a quarter of the recorded one, so that the current \
-             loops' circle and the modulator's limit act in 75 of its 388 steps; a cost the \
-             recorded run never reaches, which the PIL reports without failing on it): Cortex-M4 {}, \
-             Cortex-M0 {}; mean {} and {} (docs/drive.md, \"speed loop: the reference's \
-             weight\", profiles a saturated step).\n\n",
+             loops' circle and the modulator's hexagon act in 75 of its 388 steps; held to the \
+             budget like the others): Cortex-M4 {}, Cortex-M0 {}; mean {} and {} \
+             (docs/drive.md, \"speed loop: the reference's weight\", profiles a saturated \
+             step).\n\n",
             over(&v[1], 1500),
             over(&v[3], 4000),
             v[0],

@@ -52,8 +52,9 @@ const NO_FW: [(&str, &str); 2] = [
     ("field_weakening = true", "field_weakening = false"),
 ];
 
-/// Motor B, 540 V, 4 N·m, 3000 r/min asked: with i_d = 0 the circle holds it near 2600 r/min,
-/// overmodulation reaches the reference; with field weakening both reach it, overmodulation
+/// Motor B, 540 V, 4 N·m, 3000 r/min asked: with i_d = 0 the current loops' circle (the
+/// dead-time compensation passing on to the hexagon) holds it near 2700 r/min, overmodulation
+/// reaches the reference; with field weakening both reach it, overmodulation
 /// with at least 10 % less current (less negative i_d).
 #[test]
 fn motor_b_rated_point() {
@@ -66,7 +67,7 @@ fn motor_b_rated_point() {
     println!(
         "motor B, field weakening: {w2:.1} r/min |i| {i2:.2} A, overmodulating {w3:.1} r/min |i| {i3:.2} A"
     );
-    assert!(w0 < 2700.0, "{w0}");
+    assert!(w0 < 2750.0, "{w0}");
     assert!(w1 > 2980.0, "{w1}");
     assert!(w2 > 2950.0 && w3 > 2990.0, "{w2} {w3}");
     assert!(i3 < 0.9 * i2, "{i3} A vs {i2} A");

@@ -17,7 +17,7 @@
 //! Measured error against f64 over the whole input range: see `docs/PERFORMANCE.md`; the
 //! tests bound it at 3 LSB of Q2.30 (2.8e−9).
 
-use crate::num::{UNIT_FRAC, Unit, round_shift_sat, wmul_inline};
+use crate::num::{UNIT_FRAC, Unit, round_shift, round_shift_sat, wmul_inline};
 use core::ops::{Add, Neg, Sub};
 
 /// Electrical angle, one turn = 2³² (LSB = 2π/2³² ≈ 1.46e−9 rad), range [−π, π), wrapping.
@@ -182,7 +182,7 @@ pub fn sin_cos(angle: Angle) -> SinCos {
     };
     // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2; |δ| ≤ π/1024 < 2^21.7 LSB. The
     // one product that needs all its bits is a 32×32→64 one (`wmul`).
-    let delta = round_shift_sat(wmul_inline(rem, HALF_PI_Q30 as i32), UNIT_FRAC);
+    let delta = round_shift(wmul_inline(rem, HALF_PI_Q30 as i32), UNIT_FRAC);
     // The small terms fit 32-bit products (one `MULS` each on every core): δ²/2 is below
     // 2^12.4 LSB and δ³/6 below 6 LSB, so a few bits of δ are all they need.
     let t = (delta + (1 << 6)) >> 7; // δ/2⁷, |t| < 2^14.7
@@ -193,11 +193,10 @@ pub fn sin_cos(angle: Angle) -> SinCos {
     let (s_a, c_a) = (s_a as i32, c_a as i32);
     // x·(1 − cos δ) = x·δ²/2 for a table value |x| ≤ 2^30: x to 2^15 steps (0.1 LSB).
     let half_d2 = |x: i32| (((x + (1 << 14)) >> 15) * d2 + (1 << 15)) >> 16;
-    // sin(a+δ) = sin a − sin a (1 − cos δ) + cos a sin δ; cos(a+δ) likewise.
-    let sin =
-        (s_a - half_d2(s_a)).saturating_add(round_shift_sat(wmul_inline(c_a, sin_d), UNIT_FRAC));
-    let cos =
-        (c_a - half_d2(c_a)).saturating_sub(round_shift_sat(wmul_inline(s_a, sin_d), UNIT_FRAC));
+    // sin(a+δ) = sin a − sin a (1 − cos δ) + cos a sin δ; cos(a+δ) likewise (|sin δ| < 2²²
+    // times a table value ≤ 2³⁰: the products' roundings fit an i32).
+    let sin = (s_a - half_d2(s_a)).saturating_add(round_shift(wmul_inline(c_a, sin_d), UNIT_FRAC));
+    let cos = (c_a - half_d2(c_a)).saturating_sub(round_shift(wmul_inline(s_a, sin_d), UNIT_FRAC));
     SinCos {
         sin: Unit::from_bits(sin),
         cos: Unit::from_bits(cos),

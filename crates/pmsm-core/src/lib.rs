@@ -97,7 +97,6 @@ mod num;
 mod observer;
 mod params;
 mod recorder;
-mod sqrt;
 mod svpwm;
 mod units;
 

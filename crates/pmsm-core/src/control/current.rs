@@ -28,16 +28,20 @@
 //! `±V_max`, then q to `±√(V_max² − v_d²)`: the d axis, which sets the flux and (at
 //! `i_d* = 0`) needs little voltage, keeps its authority, and the q axis gets what is left.
 //! Each PI sees its own axis limit, so its anti-windup (back-calculation and integrator
-//! clamping, [`super::pi`]) acts exactly when the vector reaches the circle; SVPWM then never
-//! has to shorten the vector itself. If it does (dead-time compensation added after this
-//! stage, or a bus drop between the two), its `saturated` flag is fed back as
-//! [`CurrentInput::hold`] and stops both integrators from winding outward.
+//! clamping, [`super::pi`]) acts exactly when the vector reaches the circle. The dead-time
+//! compensation added after this stage may carry it past the circle; the modulator passes it
+//! whole up to its hexagon, and only beyond (or after a bus drop between the two) shortens it
+//! and sets its `saturated` flag, which is fed back as [`CurrentInput::hold`] and stops both
+//! integrators from winding outward.
 //!
-//! The room needs no root: it is `V_max √(1 − t²)` with `t = |v_d|/V_max`, a fraction of the
-//! bus from the bus's reciprocal (which the drive keeps from one reading to the next) times
-//! `√3/m`, interpolated on the arc from inside ([`super::arc_room`]): never beyond the circle,
-//! short of it by at most `10⁻⁴ V_max` for `t ≤ ½`, `5·10⁻⁴ V_max` for `t ≤ 0.9` (an exact
-//! root cost the saturated step ~130 instructions on a Cortex-M4, some 400 on a Cortex-M0).
+//! The room needs no root: it is `V_max √(1 − t²)` with `t = |v_d|/V_max`, interpolated on the
+//! arc from inside ([`super::arc_room`]): never beyond the circle, short of it by at most
+//! `10⁻⁴ V_max` for `t ≤ ½`, `5·10⁻⁴ V_max` for `t ≤ 0.9` (an exact root cost the saturated
+//! step ~130 instructions on a Cortex-M4, some 400 on a Cortex-M0). `t` is taken at or above
+//! its value, within 1.8·10⁻⁴ at `m = 1`, from 32-bit products alone: `|v_d|/v_DC` in Q16 from
+//! the top bits of the bus's reciprocal (which the drive keeps from one reading to the next),
+//! then times `√3/m` in Q15; the room that costs is at most `1.1·10⁻⁴ V_max` more for
+//! `t ≤ ½` (`3.7·10⁻⁴ V_max` at `t = 0.9`).
 //! It is read only when the q axis comes near the circle: the q PI first finishes its step
 //! with the inner bound `V_max − |v_d|` (`(V_max − |v_d|)² ≤ V_max² − v_d²`), and only if a
 //! limit took part (`Pi::finish`) again with the room, from the same products (`Pi::prepare`);
@@ -50,6 +54,7 @@
 //! | currents, voltages, `ω`, `v_DC`, `ψ` | [`Pu`] Q8.24 | ±128 |
 //! | `L_d`, `L_q` (per unit, `= X/Z_b` at base speed) | [`Coef<24>`](Coef) | [2⁻⁸, 64] (envelope), resolution 6e−8 |
 //! | `m/√3` | [`Coef<31>`](Coef) | (0, 0.578] |
+//! | `|v_d|/v_DC`, `√3/m`, `t` (the room's) | Q16 (`u32`), Q15 (`u32`), Q2.30 | `t` in `[0, 1 + 2⁻²)`; `√3/m < 2²⁶` |
 //! | `K_p`, `K_i T_s` | [`PiConfig`] | `K_p` [2⁻⁹, 2¹⁴) pu, `K_i T_s` 0 or [2⁻²², 1) pu |
 //! | `V_max` | [`Pu`] | ≤ 1.16 · `m` at nominal bus |
 //!
@@ -98,9 +103,6 @@ impl CurrentDesign {
 /// Default `ω_c T_s`: 1400 rad/s at 14 kHz, a decade below the sampling limit.
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.1;
 
-/// Binary point of `√3/m` (at most 1732 for the least `m`, 10⁻³).
-const VDC_PER_VMAX_FRAC: u32 = 20;
-
 /// Configuration of the [`CurrentController`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentConfig {
@@ -114,8 +116,9 @@ pub struct CurrentConfig {
     psi: Pu,
     /// `m/√3`: `V_max = m/√3 · v_DC` (both per unit of `V_b`).
     vmax_per_vdc: Coef<31>,
-    /// `√3/m`, rounded up: `x/V_max = x/v_DC · √3/m`, from the bus's reciprocal.
-    vdc_per_vmax: Coef<VDC_PER_VMAX_FRAC>,
+    /// `√3/m` in Q15, rounded up (below 2²⁶): `x/V_max = x/v_DC · √3/m`, from the bus's
+    /// reciprocal, in one 32-bit product with `x/v_DC` to Q16.
+    vdc_per_vmax_q15: u32,
     decoupling: bool,
     /// The design it was built from (SI), for reports.
     pub design: CurrentDesign,
@@ -193,11 +196,8 @@ impl CurrentConfig {
                 true,
                 1.0,
             )?,
-            // √3/m ≤ √3/10⁻³ < 2¹¹: it fits; rounded up so that x/V_max is never short.
-            vdc_per_vmax: Coef::from_bits(libm::ceil(libm::ldexp(
-                libm::sqrt(3.0) / m,
-                VDC_PER_VMAX_FRAC as i32,
-            )) as i32),
+            // √3/m ≤ √3/10⁻³ < 2¹¹: below 2²⁶ in Q15; rounded up so that x/V_max is never short.
+            vdc_per_vmax_q15: libm::ceil(libm::ldexp(libm::sqrt(3.0) / m, 15)) as u32,
             decoupling: design.decoupling,
             design,
             gains_si: [kp_d, ki_d, kp_q, ki_q],
@@ -329,7 +329,13 @@ impl CurrentController {
                 } else {
                     inv_vdc
                 };
-                let t = c.vdc_per_vmax.apply_bits(inv_vdc.fraction(x));
+                // t ≥ |v_d|/V_max: |v_d|/v_DC in Q16 rounded up (a ≤ 2¹⁶ m/√3 + 6, as
+                // |v_d| ≤ V_max), times √3/m rounded up (k < 2¹⁵ √3/m + 1): a k < 2³¹ + 2²⁹ for
+                // every m ≥ 10⁻³, one 32-bit product; halved, plus one: below 2³¹ (at or
+                // beyond one the arc gives no room). Over by at most (√3/m) 6·2⁻¹⁶ + 2⁻¹⁵/√3
+                // + 2⁻³⁰: 1.8e−4 at m = 1.
+                let a = inv_vdc.fraction_q16_up(x);
+                let t = ((a.wrapping_mul(c.vdc_per_vmax_q15) >> 1) + 1) as i32;
                 let room = arc_room(v_max, t).max(lower);
                 let (q, _, integ) = self.pi_q.finish(&terms, room, input.hold);
                 (q, integ)

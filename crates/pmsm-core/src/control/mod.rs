@@ -33,7 +33,7 @@ pub use speed::{
 };
 
 use crate::error::ConfigError;
-use crate::num::{Pu, wmul};
+use crate::num::{Pu, mul_u16};
 
 /// `√(1 − t²)` at `t = k/64`, `k = 0..=64`, in Q0.16 rounded down (1 held at 65535): the
 /// arc of [`arc_room`] (130 bytes).
@@ -70,8 +70,8 @@ pub(crate) fn arc_room(r: Pu, t: i32) -> Pu {
     // g0 ≥ g1 (the arc falls): the chord, its fall rounded up, less one unit
     // ((g0 − g1) frac < 2³²).
     let g = (g0 - ((g0 - g1) * frac).div_ceil(0x1_0000)).saturating_sub(1);
-    // r g rounded down (r < 2³¹, g < 2¹⁶: the product fits an i64).
-    Pu::from_bits((wmul(r.to_bits().max(0), g as i32) >> 16) as i32)
+    // r g rounded down (r < 2³¹, g < 2¹⁶: two 32-bit products on a Cortex-M0).
+    Pu::from_bits(mul_u16(r.to_bits().max(0), g))
 }
 
 /// `c · x` rounded to nearest for a coefficient `|c| < 1` ([`Coef<31>`](crate::num::Coef)):

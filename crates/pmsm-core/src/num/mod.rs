@@ -31,12 +31,16 @@ pub const UNIT_FRAC: u32 = 30;
 /// dead-time vector.
 pub(crate) const INV_SQRT3_Q31: i32 = 1_239_850_262;
 
-/// Rounds `x / 2^shift` to nearest (ties toward +∞) and saturates to `i32`.
+/// Rounds `x / 2^shift` to nearest (ties toward +∞) and saturates to `i32`: a result beyond
+/// the `i32` range comes out at the rail it passed, exactly for `shift < 16` and `shift ≥ 32`,
+/// and for `shift` in 16..=31 within `2^(32−shift) − 1` LSB of it (at most 2⁻¹⁵ of full
+/// scale: the high word is clamped and the low word's bits pass, [`join_clamped`]). It never
+/// wraps, and a result inside the range is exact.
 ///
 /// `shift` must be in 1..=62 and `|x| ≤ 2⁶³ − 2³²` (any product of two `i32`, or a sum of
 /// two such products); these are contracts of every caller in the crate. With a constant
-/// `shift` ≤ 32 (every per-sample product) this is about ten instructions on a Cortex-M4:
-/// the rounding half is added before the shift, and the fit test looks at the high word only.
+/// `shift` ≤ 32 (every per-sample product) the rounding half is added before the shift, and
+/// the range is handled on the high word only.
 #[inline(always)]
 pub(crate) const fn round_shift_sat(x: i64, shift: u32) -> i32 {
     if shift <= 32 {
@@ -47,19 +51,69 @@ pub(crate) const fn round_shift_sat(x: i64, shift: u32) -> i32 {
     }
 }
 
+/// Rounds `x / 2^shift` to nearest (ties toward +∞) for a result the caller has bounded
+/// inside the `i32` range (each call site says why): no saturation to test for. `shift` in
+/// 1..=32 and `|x| < 2⁶³ − 2³¹`.
+#[inline(always)]
+pub(crate) const fn round_shift(x: i64, shift: u32) -> i32 {
+    (x.wrapping_add(1 << (shift - 1)) >> shift) as i32
+}
+
+/// The least shift whose saturation clamps the high word ([`join_clamped`]): the low bits
+/// that pass are then below 2⁻¹⁵ of full scale.
+const JOIN_MIN_SHIFT: u32 = 16;
+
+/// Whether this is ARMv6-M (Cortex-M0/M0+), recognised as in [`wmul`].
+const V6M: bool = cfg!(all(target_arch = "arm", not(target_has_atomic = "32")));
+
 /// [`round_shift_sat`] for `shift` in 1..=32: `p = x + 2^(shift−1)` cannot wrap under the
-/// contract on `x`, and `p >> shift` fits an `i32` exactly when bits 63 down to
-/// `shift + 31` of `p` agree, i.e. when the high word shifted right by `shift − 1` is all
-/// sign.
+/// contract on `x`. From a shift of 16 on, a Cortex-M4 clamps the high word with one `SSAT`
+/// and joins it to the low word (five instructions with the rounding, against eight for a
+/// test of the high word and a select: 135 fewer per drive step). ARMv6-M has no `SSAT`, and
+/// its constants cost more than the test of whether the high word is all sign (then
+/// `p >> shift` fits): there the clamp runs only when it does not. Both give the same bits
+/// (tests).
 #[inline(always)]
 const fn shr_sat_small(x: i64, shift: u32) -> i32 {
     let p = x.wrapping_add(1 << (shift - 1));
     let hi = (p >> 32) as i32;
-    if (hi >> (shift - 1)) == (hi >> 31) {
-        (p >> shift) as i32
-    } else {
-        (hi >> 31) ^ i32::MAX
+    if shift == 32 {
+        return hi;
     }
+    if V6M || shift < JOIN_MIN_SHIFT {
+        let v = (p >> shift) as i32;
+        if (hi >> (shift - 1)) == (hi >> 31) {
+            return v;
+        }
+        if shift < JOIN_MIN_SHIFT {
+            return (hi >> 31) ^ i32::MAX;
+        }
+        // Beyond: the clamped high word is the rail's, so `join_clamped` is the rail with its
+        // low `32 − shift` bits replaced by the low word's top ones: the sign shifted up and
+        // one constant for the rail's top bits, and `v` less the high word's bits for the low
+        // ones (no mask for the Cortex-M0 to keep in a register across the products).
+        let k = 32 - shift;
+        let top = ((hi >> 31) << k) ^ (i32::MAX & !((1 << k) - 1));
+        return top | (v ^ (hi << k));
+    }
+    join_clamped(p, shift)
+}
+
+/// `p`'s high word clamped to `[−2^(shift−1), 2^(shift−1))`, shifted up and joined to the low
+/// word's top `32 − shift` bits (`shift` in 1..=31): `p >> shift` when that fits an `i32`,
+/// else within `2^(32−shift)` of the rail it passed.
+#[inline(always)]
+const fn join_clamped(p: i64, shift: u32) -> i32 {
+    let hi = (p >> 32) as i32;
+    let lim = (1i32 << (shift - 1)) - 1;
+    let c = if hi > lim {
+        lim
+    } else if hi < -lim - 1 {
+        -lim - 1
+    } else {
+        hi
+    };
+    ((c as u32) << (32 - shift) | (p as u32) >> shift) as i32
 }
 
 /// `x` times the Q4.28 scale `s` (`1 << 28` is one), saturated: the dead-time calibration's
@@ -109,18 +163,27 @@ fn wmul_v6m(a: i32, b: i32) -> i64 {
     wmul_halves(a, b)
 }
 
-/// `a · b` from 16-bit halves: `a = a_h 2¹⁶ + a_l` with `a_h` signed, `a_l` unsigned. Each
-/// partial product fits its 32-bit type: `a_l b_l < 2³²` unsigned, `|a_h b_l| < 2³¹`,
-/// `a_h b_h ≤ 2³⁰`.
+/// `a · b` from 16-bit halves taken balanced: `a = a_h 2¹⁶ + a_l` with `a_l` the low half
+/// sign-extended (`[−2¹⁵, 2¹⁵)`) and `a_h = (a − a_l)/2¹⁶` (`[−2¹⁵, 2¹⁵]`). Every partial
+/// product is within ±2³⁰, and so is the middle sum within the `i32` range: `a_h b_l` reaches
+/// 2³⁰ only at `a_h = b_l = −2¹⁵`, where `a_l ≥ 0` keeps `a_l b_h` below 2³⁰ − 2¹⁵ (the
+/// negative side likewise). So the middle term needs no 64-bit sum of its own: a Cortex-M0
+/// forms the product in 20-odd instructions without spilling.
 #[inline(always)]
 #[allow(dead_code)] // used on ARMv6-M only, and by the tests
 const fn wmul_halves(a: i32, b: i32) -> i64 {
-    let (al, ah) = ((a as u32) & 0xffff, a >> 16);
-    let (bl, bh) = ((b as u32) & 0xffff, b >> 16);
-    let ll = al * bl;
-    let hh = ah * bh;
-    let mid = (ah * bl as i32) as i64 + (al as i32 * bh) as i64;
-    ((hh as i64) << 32) + (mid << 16) + ll as i64
+    let (al, bl) = (a as i16 as i32, b as i16 as i32);
+    let (ah, bh) = (a.wrapping_sub(al) >> 16, b.wrapping_sub(bl) >> 16);
+    let mid = ah.wrapping_mul(bl).wrapping_add(al.wrapping_mul(bh));
+    let ll = al.wrapping_mul(bl);
+    // (a_h b_h 2³² + mid 2¹⁶) + a_l b_l by words: the high word of mid 2¹⁶ is mid >> 16.
+    let (lo, carry) = ((mid as u32) << 16).overflowing_add(ll as u32);
+    let hi = ah
+        .wrapping_mul(bh)
+        .wrapping_add(mid >> 16)
+        .wrapping_add(ll >> 31)
+        .wrapping_add(carry as i32);
+    ((hi as i64) << 32) | lo as i64
 }
 
 /// [`wmul`], inlined on every core (the halves on ARMv6-M): for the few kernels called most
@@ -140,6 +203,7 @@ pub(crate) fn wmul_inline(a: i32, b: i32) -> i64 {
 
 /// `a · b` as the exact 64-bit product of two `u32` (`UMULL` on Cortex-M3/M4; four 16×16
 /// partial products on ARMv6-M instead of the general `__aeabi_lmul`).
+#[cfg(any(test, feature = "overmodulation"))]
 #[inline(always)]
 pub(crate) fn umul(a: u32, b: u32) -> u64 {
     #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
@@ -152,7 +216,11 @@ pub(crate) fn umul(a: u32, b: u32) -> u64 {
     }
 }
 
-#[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+#[cfg(all(
+    target_arch = "arm",
+    not(target_has_atomic = "32"),
+    any(test, feature = "overmodulation")
+))]
 #[inline(never)]
 fn umul_v6m(a: u32, b: u32) -> u64 {
     umul_halves(a, b)
@@ -167,6 +235,40 @@ const fn umul_halves(a: u32, b: u32) -> u64 {
     let (bl, bh) = (b & 0xffff, b >> 16);
     let mid = (ah * bl) as u64 + (al * bh) as u64;
     (((ah * bh) as u64) << 32) + (mid << 16) + (al * bl) as u64
+}
+
+/// `⌊x · c / 2¹⁶⌋` for a factor `c < 2¹⁶` (Q0.16): the arc's room and, shifted by three
+/// more, the modulator's shrink onto its hexagon ([`mul_q19`]). On ARMv6-M two 32-bit `MULS`
+/// of `x`'s halves instead of a 32×32→64 product: `x = x_h 2¹⁶ + x_l`, `|x_h c| < 2³¹ − 2¹⁶`,
+/// `x_l c < 2³²`, and `⌊(x_h c 2¹⁶ + x_l c)/2¹⁶⌋ = x_h c + ⌊x_l c/2¹⁶⌋` exactly (the same bits
+/// as the `i64` product; checked in the tests).
+#[inline(always)]
+pub(crate) fn mul_u16(x: i32, c: u32) -> i32 {
+    #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+    {
+        mul_u16_halves(x, c)
+    }
+    #[cfg(not(all(target_arch = "arm", not(target_has_atomic = "32"))))]
+    {
+        ((x as i64 * (c & 0xffff) as i64) >> 16) as i32
+    }
+}
+
+/// [`mul_u16`] from 16-bit halves of `x` (ARMv6-M, and the tests).
+#[inline(always)]
+#[allow(dead_code)] // used on ARMv6-M only, and by the tests
+const fn mul_u16_halves(x: i32, c: u32) -> i32 {
+    let c = c & 0xffff;
+    let hi = (x >> 16).wrapping_mul(c as i32);
+    let lo = ((x as u32) & 0xffff).wrapping_mul(c) >> 16;
+    hi.wrapping_add(lo as i32)
+}
+
+/// `⌊x · c / 2¹⁹⌋` for `c < 2¹⁶` (Q0.19 below ⅛): the modulator's shrink onto its hexagon,
+/// [`mul_u16`] shifted by three more (nested floors: the same bits).
+#[inline(always)]
+pub(crate) fn mul_q19(x: i32, c: u32) -> i32 {
+    mul_u16(x, c) >> 3
 }
 
 /// `x/d` in Q2.30 for a divisor `d > 0` known only at run time (or with too wide a range
@@ -240,6 +342,25 @@ impl Reciprocal {
     #[inline(always)]
     pub fn fraction_q28(self, x: i32) -> i32 {
         (((self.product(x) >> 32) as i32) + 1) >> 1
+    }
+
+    /// [`Reciprocal::fraction`] for `|x| ≤ d`, which the caller has checked: `x << pre` then
+    /// fits and the result is within ±2³⁰, so neither needs a saturation test (the same bits).
+    #[inline(always)]
+    pub fn fraction_within(self, x: i32) -> i32 {
+        round_shift(wmul_inline(x << self.pre, self.r), 31)
+    }
+
+    /// `x/d` in Q16 for `0 ≤ x ≤ d`, rounded up, from one 32-bit product of the top bits of
+    /// `x << pre` and of `r` (each rounded up): at or above the exact value, by at most
+    /// 6·2⁻¹⁶ (the current loops' `|v_d|/v_DC`, where the room it indexes is a table's).
+    #[inline(always)]
+    pub fn fraction_q16_up(self, x: i32) -> u32 {
+        // x ≤ d: x << pre < 2³¹. (x << pre)/2¹⁵ + 1 ≤ 2¹⁶ and r/2¹⁶ + 1 ≤ 2¹⁵: the product
+        // stays below 2³¹, and x/d = (x << pre) r / 2⁶¹ ≤ that product / 2³⁰.
+        let xs = ((x.max(0) as u32) << self.pre >> 15) + 1;
+        let rs = (self.r as u32 >> 16) + 1;
+        ((xs * rs) >> 14) + 1
     }
 
     /// `(x << pre) · r` = `x · 2⁶¹/d` (the shift saturated).
