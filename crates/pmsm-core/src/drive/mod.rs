@@ -394,7 +394,7 @@ impl Drive {
         }
         let setpoint = match self.state {
             DriveState::Ipd => return self.ipd_step(i, input.vdc),
-            DriveState::Align => self.align(i.beta, input.vdc),
+            DriveState::Align => self.align(i, input.vdc),
             DriveState::OpenLoop => match self.open_loop(&estimate) {
                 Ok(setpoint) => setpoint,
                 Err(fault) => return self.trip(fault),
@@ -523,16 +523,16 @@ impl Drive {
         }
     }
 
-    /// Alignment: a d-axis current along α, the β winding shorted (`startup`); at its end the
-    /// rotor is where the current points. Then, or after a detection, the dead-time
+    /// Alignment: a d-axis current a quarter turn ahead of α, then along α, the winding across
+    /// it shorted (`startup`); at its end the rotor is where the current points. Then, or after a detection, the dead-time
     /// calibration.
     #[inline(always)]
-    fn align(&mut self, i_beta: Pu, vdc: Pu) -> Setpoint {
+    fn align(&mut self, i: AlphaBeta, vdc: Pu) -> Setpoint {
         let calibrating = self.config.calibration.enabled();
         if calibrating && self.open_loop.align_done(&self.config) {
             return self.calibrate(vdc);
         }
-        let (theta, i_ref) = self.open_loop.align_frame(&self.config, i_beta);
+        let (theta, i_ref) = self.open_loop.align_frame(&self.config, i);
         if !calibrating && self.open_loop.align_done(&self.config) {
             self.state = self.rotor_found(self.open_loop.align_angle());
             self.telemetry.estimate = self.estimator.estimate();

@@ -46,8 +46,17 @@
 //!
 //! # Alignment
 //!
-//! The d current along `θ = 0` ramps up over the first half of the alignment time and holds
-//! over the second. Nothing in a current loop damps the rotor's swing about `θ = 0` (a heavy
+//! The d current first along a quarter turn ahead of `θ = 0`, ramped up over the first eighth
+//! of the alignment time, then along `θ = 0`, ramped up again until the half and held over the
+//! second half. The first step is short: it only has to move a rotor off the second's dead
+//! point; a longer one (a quarter) swung motor C's rotor, standing at `θ = 0`, out and back, and
+//! the estimator started on a rotor not yet at rest (at zero speed under rated load it then
+//! let the load turn the rotor backwards at 280 r/min). A single step along `θ = 0` leaves a rotor that stands half a turn away where it
+//! is: the current along its negative d axis has no torque (an unstable rest, which the
+//! plant's exact motor keeps; a real one leaves it slowly), and the estimator then starts half
+//! a turn off: motor A from 180° tripped at the handover (docs/PERFORMANCE.md, operating map).
+//! The first step's own dead point, a quarter turn behind `θ = 0`, is a quarter turn from the
+//! second's. Nothing in a current loop damps the rotor's swing about `θ = 0` (a heavy
 //! rotor released at 120° still swings by ±90° after 0.5 s, and the estimator then starts on a
 //! rotor that is neither there nor at rest), so the q axis is not regulated: its reference is
 //! the measured `i_β`, the q error is zero, its PI (reset, without speed feed-forward at
@@ -71,9 +80,13 @@
 use super::Fault;
 use super::config::DriveConfig;
 use crate::angle::Angle;
-use crate::frames::Dq;
+use crate::frames::{AlphaBeta, Dq};
 use crate::num::{Pu, mul_unit};
 use crate::observer::Estimate;
+
+/// The alignment's first frame, a quarter turn ahead of the second (`θ = 0`): a rotor half a
+/// turn from `θ = 0`, where a current along α has no torque, is pulled from there first.
+const ALIGN_FIRST: Angle = Angle(1 << 30);
 
 /// Tolerance of the handover angle check beyond the physical range [0, 90°].
 pub const HANDOVER_MARGIN: Angle = Angle(1 << 28); // 22.5°
@@ -117,26 +130,42 @@ impl OpenLoop {
         self.theta
     }
 
-    /// The alignment's frame (θ = 0) and current reference `(I, i_β)`, `I` ramped over the
-    /// first half of the alignment, `i_β` the measured current (zero q voltage: the module
-    /// docs); counts the sample. At the last sample the rotor's angle is taken as the
-    /// current's, `atan2(i_β, I)` (module docs, "where the rotor stops").
-    pub fn align_frame(&mut self, c: &DriveConfig, i_beta: Pu) -> (Angle, Dq) {
+    /// The alignment's frame and current reference (module docs, "Alignment"): the first
+    /// eighth of the samples a quarter turn ahead of `θ = 0`, `(I_r, −i_α)` with `I_r` ramped
+    /// to `I`; then `θ = 0`, `(I_r, i_β)` ramped again up to the half and held at `I` over the
+    /// second half (the q reference is the measured q current of the frame: zero q voltage). Counts the
+    /// sample. At the last sample the rotor's angle is taken as the current's,
+    /// `atan2(i_β, I)` (module docs, "where the rotor stops").
+    pub fn align_frame(&mut self, c: &DriveConfig, i: AlphaBeta) -> (Angle, Dq) {
         self.count = self.count.saturating_add(1);
-        let half = (c.open_loop.align_samples / 2).max(1);
-        let i = if self.count >= half {
-            if self.count == c.open_loop.align_samples {
-                self.theta = crate::cordic::polar(c.open_loop.current, i_beta).angle;
-            }
-            c.open_loop.current
-        } else {
-            // I · count/half in i64: the ramp is exact to an LSB and cannot overflow.
-            let bits = (c.open_loop.current.to_bits() as i64 * self.count as i64)
-                .checked_div(half as i64)
+        let n = c.open_loop.align_samples;
+        let first = (n / 8).max(1);
+        let ramp_to = |k: u32, len: u32| {
+            // I · k/len in i64: the ramp is exact to an LSB and cannot overflow.
+            let bits = (c.open_loop.current.to_bits() as i64 * k.min(len) as i64)
+                .checked_div(len.max(1) as i64)
                 .unwrap_or(0);
             Pu::from_bits(bits as i32)
         };
-        (Angle::ZERO, Dq { d: i, q: i_beta })
+        if self.count < first {
+            return (
+                ALIGN_FIRST,
+                Dq {
+                    d: ramp_to(self.count, first),
+                    q: i.alpha.saturating_neg(),
+                },
+            );
+        }
+        if self.count == n {
+            self.theta = crate::cordic::polar(c.open_loop.current, i.beta).angle;
+        }
+        (
+            Angle::ZERO,
+            Dq {
+                d: ramp_to(self.count - first, (n / 2).saturating_sub(first)),
+                q: i.beta,
+            },
+        )
     }
 
     /// The alignment has lasted its time.
@@ -299,7 +328,9 @@ mod tests {
 
     /// The alignment ends at the angle of the last sample's current `(I, i_β)`, against the
     /// `f64` `atan2` within 10⁻⁵ rad (the CORDIC's rounding), for β currents up to ±I; the
-    /// frame stays at zero throughout.
+    /// frame is a quarter turn ahead over the first eighth of the samples, then zero; the d
+    /// current ramps from zero to `I` over that eighth, and again from zero until the half (the
+    /// q reference the frame's measured q current).
     #[test]
     fn the_alignment_ends_at_the_currents_angle() {
         let (m, inv) = (motor_b(), inverter_b());
@@ -307,14 +338,37 @@ mod tests {
         let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
         let c = DriveConfig::new(&m, &inv, 14e3, design).unwrap();
         let i = c.open_loop.current.to_bits() as f64;
+        let n = c.open_loop.align_samples;
+        let first = n / 8;
+        assert!(first > 10);
         for ratio in [-1.0, -0.47, -0.01, 0.0, 0.2, 0.9] {
-            let i_beta = pu_from_f64(ratio * i / (1u64 << 24) as f64);
+            let i_ab = AlphaBeta {
+                alpha: pu_from_f64(0.3),
+                beta: pu_from_f64(ratio * i / (1u64 << 24) as f64),
+            };
             let mut ol = OpenLoop::align();
+            let mut k = 0;
             while !ol.align_done(&c) {
-                let (frame, _) = ol.align_frame(&c, i_beta);
-                assert_eq!(frame, Angle::ZERO);
+                k += 1;
+                let (frame, i_ref) = ol.align_frame(&c, i_ab);
+                let (want_frame, ramp, q) = if k < first {
+                    (
+                        ALIGN_FIRST,
+                        k as f64 / first as f64,
+                        i_ab.alpha.saturating_neg(),
+                    )
+                } else {
+                    let len = (n / 2 - first) as f64;
+                    (Angle::ZERO, ((k - first) as f64 / len).min(1.0), i_ab.beta)
+                };
+                assert_eq!(frame, want_frame, "sample {k}");
+                assert_eq!(i_ref.q, q, "sample {k}");
+                assert!(
+                    (i_ref.d.to_bits() as f64 - i * ramp).abs() <= 1.0,
+                    "sample {k}"
+                );
             }
-            let want = libm::atan2(i_beta.to_bits() as f64, i);
+            let want = libm::atan2(i_ab.beta.to_bits() as f64, i);
             let got = ol.align_angle().to_rad();
             assert!(
                 (got - want).abs() < 1e-5,
