@@ -329,14 +329,7 @@ impl SvpwmConfig {
         if excess > self.excess_max {
             return None;
         }
-        // e = excess/S in Q0.19, rounded up: a shift for the whole hexagon (m = 1), else
-        // excess < 2²⁷ times 2⁵¹/S ≤ 2²² (both below 2³¹: the signed product, the Cortex-M0's
-        // quicker one, is exact).
-        let e = if self.span_max == 1 << UNIT_FRAC {
-            excess.div_ceil(1 << (UNIT_FRAC - 19))
-        } else {
-            ((wmul(excess as i32, self.inv_span_q51 as i32) + u32::MAX as i64) >> 32) as u32
-        };
+        let e = excess_q19(excess, self.span_max, self.inv_span_q51);
         // g in Q0.16 (≤ 1), e g < 2³²; c = e(1 − e(1 − e(1 − e(1 − e)))).
         let one = 1u32 << 16;
         let g = one - e.div_ceil(8);
@@ -387,22 +380,27 @@ impl SvpwmConfig {
     }
 }
 
+/// `e = excess/S` in Q0.19, rounded up, for `excess ≤ S/4`: a shift for the whole hexagon
+/// (`S = 2³⁰`, `m = 1`), else the excess (below 2²⁸) times `2⁵¹/S` (at most 2²²), both below
+/// 2³¹ so that the signed product, the Cortex-M0's quicker one, is exact; below 2¹⁹.
+#[inline(always)]
+fn excess_q19(excess: u32, span_max: u32, inv_span_q51: u32) -> u32 {
+    if span_max == 1 << UNIT_FRAC {
+        excess.div_ceil(1 << (UNIT_FRAC - 19))
+    } else {
+        ((wmul(excess as i32, inv_span_q51 as i32) + u32::MAX as i64) >> 32) as u32
+    }
+}
+
 /// The largest excess over `S` whose `e`, as [`SvpwmConfig::shrink`] rounds it, is below
 /// 2¹⁶ (⅛ in Q0.19): `e · g` then fits 32 bits. `e` grows with the excess, so the bound is
 /// found by bisection at configuration time.
 fn excess_max_for(span_max: u32, inv_span_q51: u32) -> u32 {
-    let e_of = |x: u32| -> u64 {
-        if span_max == 1 << UNIT_FRAC {
-            x.div_ceil(1 << (UNIT_FRAC - 19)) as u64
-        } else {
-            (x as u64 * inv_span_q51 as u64).div_ceil(1 << 32)
-        }
-    };
     // e(lo) < 2¹⁶ ≤ e(hi).
     let (mut lo, mut hi) = (0u32, span_max >> 2);
     while hi - lo > 1 {
         let mid = lo + (hi - lo) / 2;
-        if e_of(mid) < 1 << 16 {
+        if excess_q19(mid, span_max, inv_span_q51) < 1 << 16 {
             lo = mid;
         } else {
             hi = mid;
