@@ -1,6 +1,6 @@
 //! A random family of motors and the drive on each with its defaults only
 //! (`cargo xtask family [N] [--seed S] [--estimator NAME]... [--control KEY=VALUE]... [--check]
-//! [--write]`).
+//! [--write]`; with `--seeds A-B`, every seed from A to B summed: `family_seeds.rs`).
 //!
 //! Each motor is drawn from a bus-voltage class; its parameters follow from a few
 //! dimensionless proportions (the module's `PROPORTIONS` text, printed into
@@ -443,10 +443,12 @@ pub struct RunResult {
     pub outcome: Outcome,
 }
 
-/// Runs every applicable estimator of `estimators` on every motor, `threads` at a time, with
-/// the `key = value` lines of `control` in every run's `[control]`.
+/// Runs every applicable estimator of `estimators` on every motor of the family drawn with
+/// `seed`, `threads` at a time, with the `key = value` lines of `control` in every run's
+/// `[control]`.
 pub fn run_all(
     motors: &[Motor],
+    seed: u64,
     estimators: &[&'static str],
     threads: usize,
     control: &[String],
@@ -460,7 +462,8 @@ pub fn run_all(
                 .map(move |e| (m.index, *e))
         })
         .collect();
-    let dir = std::env::temp_dir().join(format!("pmsm-family-{}", std::process::id()));
+    // One directory per seed: a seed whose runs all hold removes its own, not another's.
+    let dir = std::env::temp_dir().join(format!("pmsm-family-{}-seed{seed}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let next = AtomicUsize::new(0);
     let results = Mutex::new(Vec::new());
@@ -534,15 +537,32 @@ fn run_one(
 
 /// Counts of one estimator's runs: holds, faults by name, out of the bars, silent.
 #[derive(Default)]
-struct Tally {
-    runs: usize,
-    holds: usize,
-    faults: Vec<(&'static str, usize)>,
-    out_of_bars: usize,
-    silent: usize,
+pub struct Tally {
+    pub runs: usize,
+    pub holds: usize,
+    pub faults: Vec<(&'static str, usize)>,
+    pub out_of_bars: usize,
+    pub silent: usize,
 }
 
-fn tally(results: &[RunResult], estimator: &str) -> Tally {
+impl Tally {
+    /// Adds another tally's counts (the faults merged by name, sorted).
+    pub fn add(&mut self, t: &Tally) {
+        self.runs += t.runs;
+        self.holds += t.holds;
+        self.out_of_bars += t.out_of_bars;
+        self.silent += t.silent;
+        for &(name, k) in &t.faults {
+            match self.faults.iter_mut().find(|f| f.0 == name) {
+                Some(f) => f.1 += k,
+                None => self.faults.push((name, k)),
+            }
+        }
+        self.faults.sort();
+    }
+}
+
+pub fn tally(results: &[RunResult], estimator: &str) -> Tally {
     let mut t = Tally::default();
     for r in results.iter().filter(|r| r.estimator == estimator) {
         t.runs += 1;
@@ -558,6 +578,15 @@ fn tally(results: &[RunResult], estimator: &str) -> Tally {
     }
     t.faults.sort();
     t
+}
+
+/// An estimator's row label in the tables: its name and the motors it runs on.
+pub fn label(estimator: &str) -> String {
+    if estimator == "mras-current" {
+        format!("{estimator} (all motors)")
+    } else {
+        format!("{estimator} (surface motors)")
+    }
 }
 
 fn pct(k: usize, n: usize) -> String {
@@ -605,12 +634,8 @@ pub fn report(
         };
         let _ = writeln!(
             s,
-            "| {est}{} | {} | {} | {faults} | {} | {} |",
-            if est == "mras-current" {
-                " (all motors)"
-            } else {
-                " (surface motors)"
-            },
+            "| {} | {} | {} | {faults} | {} | {} |",
+            label(est),
             t.runs,
             pct(t.holds, t.runs),
             pct(t.out_of_bars, t.runs),
@@ -684,7 +709,7 @@ pub fn section(
     let (motors, redrawn) = family(n, seed);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let started = std::time::Instant::now();
-    let results = run_all(&motors, estimators, threads, control)?;
+    let results = run_all(&motors, seed, estimators, threads, control)?;
     let wall = started.elapsed().as_secs_f64();
     let mut s = String::from(SECTION_TITLE);
     let _ = write!(
@@ -701,7 +726,8 @@ pub fn section(
          drive holds for {SILENT_S} s in the closed loop with no fault yet, and the drive not saying why (`Drive::speed_ref_limit`: \
          at its current limit, with its estimated speed within that margin of the rotor's). CI runs `cargo xtask family {CI_MOTORS} --seed {CI_SEED} \
          --check` (six other motors, a regression check: that sample meets the bars today), which fails unless at \
-         least 90 % of the runs hold with the current-model MRAS and with the NLO and none is silent.\n\n{PROPORTIONS}\n\n",
+         least 90 % of the runs hold with the current-model MRAS and with the NLO and none is silent. The next \
+         section sums thirty seeds (`--seeds`).\n\n{PROPORTIONS}\n\n",
         100.0 * HOLD_SPEED,
         100.0 * SILENT_SPEED
     );
@@ -727,16 +753,23 @@ pub fn section(
 /// The title the section starts with (`--write` finds it there).
 pub const SECTION_TITLE: &str = "## Random motor family";
 
+/// Where the section titled `title` lies in `doc`: from its title to the next `## ` title
+/// (or the end).
+pub fn section_span(doc: &str, title: &str) -> Option<(usize, usize)> {
+    let a = doc.find(title)?;
+    let from = a + title.len();
+    Some((
+        a,
+        doc[from..]
+            .find("\n## ")
+            .map_or(doc.len(), |k| from + k + 1),
+    ))
+}
+
 /// Replaces the section in `doc` (up to the next `## ` title), or appends it.
 pub fn replace_section(doc: &str, section: &str) -> String {
-    match doc.find(SECTION_TITLE) {
-        Some(a) => {
-            let rest = &doc[a + SECTION_TITLE.len()..];
-            let b = rest
-                .find("\n## ")
-                .map_or(doc.len(), |k| a + SECTION_TITLE.len() + k + 1);
-            format!("{}{section}{}", &doc[..a], &doc[b..])
-        }
+    match section_span(doc, SECTION_TITLE) {
+        Some((a, b)) => format!("{}{section}{}", &doc[..a], &doc[b..]),
         // Where `cargo xtask perf` puts it: before the instruction counts.
         None => match doc.find("## Instructions per call") {
             Some(k) => format!("{}{section}{}", &doc[..k], &doc[k..]),
@@ -746,13 +779,13 @@ pub fn replace_section(doc: &str, section: &str) -> String {
 }
 
 /// The arguments of `cargo xtask family`.
-pub const USAGE: &str =
-    "family [N] [--seed S] [--estimator NAME]... [--control KEY=VALUE]... [--check] [--write]";
+pub const USAGE: &str = "family [N] [--seed S] [--estimator NAME]... [--control KEY=VALUE]... [--check] [--write] | family [N] --seeds A-B [--write]";
 
 /// `cargo xtask family` ([`USAGE`]).
 pub fn main(args: &[String]) -> Result<()> {
     let mut n = DOC_MOTORS;
     let mut seed = DEFAULT_SEED;
+    let mut seeds = None;
     let (mut check_bars, mut write) = (false, false);
     let mut control = Vec::new();
     let mut estimators: Vec<&'static str> = Vec::new();
@@ -762,6 +795,10 @@ pub fn main(args: &[String]) -> Result<()> {
             "--seed" => match it.next().and_then(|s| s.parse().ok()) {
                 Some(s) => seed = s,
                 None => bail!("--seed needs a number"),
+            },
+            "--seeds" => match it.next().and_then(|s| crate::family_seeds::parse_seeds(s)) {
+                Some(s) => seeds = Some(s),
+                None => bail!("--seeds needs A-B, two seeds with A ≤ B"),
             },
             "--control" => match it.next().and_then(|s| s.split_once('=')) {
                 Some((k, v)) if !k.trim().is_empty() && !v.trim().is_empty() => {
@@ -784,6 +821,22 @@ pub fn main(args: &[String]) -> Result<()> {
                 Err(_) => bail!("usage: cargo xtask {USAGE}"),
             },
         }
+    }
+    if let Some(seeds) = seeds {
+        if !control.is_empty() || !estimators.is_empty() || check_bars {
+            bail!(
+                "--seeds runs the defaults with every estimator: leave out --control, --estimator, --check"
+            );
+        }
+        let section = crate::family_seeds::section(n, seeds)?;
+        print!("{section}");
+        if write {
+            let path = crate::root().join("docs/PERFORMANCE.md");
+            let doc = std::fs::read_to_string(&path)?;
+            std::fs::write(&path, crate::family_seeds::replace_section(&doc, &section))?;
+            eprintln!("wrote the section to {}", path.display());
+        }
+        return Ok(());
     }
     if write && !control.is_empty() {
         bail!("--write records the drive's defaults: leave out --control");

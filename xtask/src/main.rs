@@ -9,7 +9,9 @@
 //!   [--write]`: the drive with its defaults on N random motors (default 40); `--estimator`
 //!   runs only the estimators named, `--control` adds a `[control]` key to every run (to
 //!   measure an option against the defaults), `--check` fails below the bars, `--write`
-//!   rewrites the section of `docs/PERFORMANCE.md`.
+//!   rewrites the section of `docs/PERFORMANCE.md`. `cargo xtask family [N] --seeds A-B
+//!   [--write]`: the same on every seed from A to B, summed (its own section, which `perf`
+//!   keeps).
 //! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
 //!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
@@ -21,6 +23,7 @@ mod cffi;
 mod drive_motor_b;
 mod examples;
 mod family;
+mod family_seeds;
 mod identify_family;
 mod light_load;
 mod map;
@@ -136,6 +139,9 @@ fn perf() -> Result<()> {
         )?
         .0,
     );
+    // The family on many seeds is `cargo xtask family 40 --seeds 1-30`'s (a quarter of an
+    // hour): kept as it is.
+    doc.push_str(&family_seeds::kept_section());
     eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
     doc.push_str(&pil::section());
     eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");

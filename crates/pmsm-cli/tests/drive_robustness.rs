@@ -236,6 +236,11 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
         ("mras-current", &["driven_backwards", "loss_of_lock"][..]),
         ("nlo", &["driven_backwards", "handover", "overspeed"][..]),
         ("ao", &["driven_backwards", "handover", "overspeed"][..]),
+        // The MRAS on the EMF holds the reference at its least speed (300 r/min here).
+        (
+            "mras-emf",
+            &["driven_backwards", "handover", "overspeed"][..],
+        ),
     ] {
         let sc = example_edited(
             "servo-24v-backwards.toml",
@@ -270,6 +275,40 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
         assert!(
             expected.contains(&fault.fault()),
             "{observer}: {} not in {expected:?}",
+            fault.fault()
+        );
+    }
+}
+
+#[test]
+fn a_locked_rotor_ends_in_a_named_fault_within_100_ms_with_every_estimator() {
+    // Motor A at 1146 r/min, no load, each estimator; the rotor locked at 2.4 s. (Motor B's
+    // locked rotor under the current-model MRAS, whose estimate follows it down, is a stall:
+    // tests/faults.rs.)
+    for observer in ["nlo", "ao", "mras-emf", "mras-current"] {
+        let sc = example_edited(
+            "a-nlo-start-load.toml",
+            &[
+                ("observer = \"nlo\"", &format!("observer = \"{observer}\"")),
+                ("duration_s = 3.0", "duration_s = 2.6"),
+                ("nm = [2.0, 2.0, 5.0]", "nm = [0.0, 0.0, 0.0]"),
+                ("[load]", "[faults]\nlocked_rotor_at_s = 2.4\n[load]"),
+            ],
+        );
+        let run = run_scenario(&sc).unwrap();
+        let fault = first_fault(&run.rows).expect("a fault");
+        let delay_ms = 1e3 * (fault.t_s - 2.4);
+        println!(
+            "{observer}: {} {delay_ms:.1} ms after the lock",
+            fault.fault()
+        );
+        assert!(
+            (0.0..100.0).contains(&delay_ms),
+            "{observer}: {delay_ms} ms"
+        );
+        assert!(
+            ["loss_of_lock", "stall", "driven_backwards"].contains(&fault.fault()),
+            "{observer}: {}",
             fault.fault()
         );
     }

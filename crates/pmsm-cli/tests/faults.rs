@@ -95,11 +95,52 @@ fn open_phase_is_detected_within_50_ms() {
 }
 
 #[test]
-fn locked_rotor_is_detected_within_200_ms() {
+fn locked_rotor_is_detected_within_100_ms() {
     let run = run_with("locked_rotor_at_s = 1.3\n", &[]);
     let (dt, name) = detected(&run, 1.3);
     println!("locked rotor: {name} after {:.1} ms", 1e3 * dt);
-    assert!(dt <= 0.2, "{dt}");
+    assert!(dt <= 0.1, "{dt}");
+}
+
+/// A rotor three times motor B's inertia, its reference stepped to rated speed: the speed
+/// loop sits at its current limit with the rotor below half the reference for about 0.35 s,
+/// yet it gains speed all along, which is no stall.
+#[test]
+fn a_heavy_rotor_accelerating_at_the_limit_is_no_stall() {
+    let motor = std::fs::read_to_string(examples().join("motor-b.toml"))
+        .unwrap()
+        .replace("j_kg_m2 = 0.0036", "j_kg_m2 = 0.0108");
+    let path = std::env::temp_dir().join(format!("pmsm-faults-heavy-{}.toml", std::process::id()));
+    std::fs::write(&path, motor).unwrap();
+    let run = run_with(
+        "",
+        &[
+            (
+                &format!("motor = \"{}/motor-b.toml\"", examples().display()),
+                &format!("motor = \"{}\"", path.display()),
+            ),
+            ("t_s = [0.0, 0.1, 0.6]", "t_s = [0.0, 0.1, 0.1001]"),
+            ("rpm = [0.0, 0.0, 800.0]", "rpm = [0.0, 0.0, 3000.0]"),
+        ],
+    );
+    std::fs::remove_file(&path).ok();
+    let slow_at_limit = run
+        .rows
+        .iter()
+        .filter(|r| r.t_s > 0.1 && r.speed_rpm < 1500.0 && r.i_q_ref_a.abs() > 3.2)
+        .count() as f64
+        / 14e3;
+    let reached = run
+        .rows
+        .iter()
+        .find(|r| r.speed_rpm > 2970.0)
+        .map(|r| r.t_s);
+    println!(
+        "at the limit below half the reference {slow_at_limit:.3} s; 99 % of 3000 r/min at {reached:?} s"
+    );
+    assert!(slow_at_limit > 0.2, "{slow_at_limit}");
+    assert!(run.rows.iter().all(|r| r.fault().is_empty()));
+    assert!(reached.is_some_and(|t| t < 1.0), "{reached:?}");
 }
 
 #[test]
@@ -140,7 +181,8 @@ fn terminal_short_trips_on_overcurrent() {
 /// A lost lock is never silent. With the drive's model resistance three times the motor's the
 /// current-model MRAS's estimate runs away from the start (the angle error passes 1 rad): its
 /// estimated speed turns against the reference while the speed loop pushes at its limit, which
-/// trips `driven_backwards` (an estimate of the wrong sign) within 0.5 s, with the health
+/// trips `stall` (the estimate not gaining speed along the reference) or `driven_backwards`
+/// (an estimate of the wrong sign, turning faster than the limit allows) within 0.5 s, with the health
 /// check (model current error, eq. 16) on by default or off. A healthy drive trips neither, and
 /// its health figure stays far below the default limit (1.0 pu).
 #[test]
@@ -177,7 +219,7 @@ fn health_figure_shows_a_lost_lock() {
             extra.replace('\n', ", ")
         );
         assert!(err > 1.0, "{err}");
-        assert_eq!(name, "driven_backwards");
+        assert!(["stall", "driven_backwards"].contains(&name), "{name}");
         assert!(dt < 0.5, "{dt}");
     }
 }
