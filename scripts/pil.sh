@@ -7,13 +7,16 @@
 #   3. runs each in qemu-system-arm -icount shift=8 (the runners of examples/qemu/.cargo),
 #   4. prints every `PIL ...` line the firmware printed, then `PIL PASS` (exit 0) if both runs
 #      exited 0 with an exact calibration, benchmark figures, a bit-exact replay (on the
-#      Cortex-M4 also of the drive and the plant in a closed loop on the target) and a drive
-#      step within its instruction budget (1500 on Cortex-M4, 4000 on Cortex-M0; by default,
-#      with MTPA and field weakening on, and with the voltage on the circle:
-#      `drive_step_saturated`), else `PIL FAIL` (exit 1);
+#      Cortex-M4 also of the drive and the plant in a closed loop on the target) and the
+#      drive's two steps within their instruction budgets (below: the interrupt step
+#      `isr_<estimator>` with the current-model MRAS by default, with MTPA and field weakening
+#      on (`isr_flux`) and with the voltage on the circle (`isr_saturated`), the back-EMF
+#      estimators' in a closed loop; the task step `task`, once per `task_period` samples),
+#      else `PIL FAIL` (exit 1);
 #   5. builds and runs, on both machines, the image of feature `identify` (the
-#      identification's benchmarks, no recording: the micro:bit cannot hold both), which must
-#      identify its plant with `identify_step` within the same budgets.
+#      identification's benchmarks and the back-EMF estimators' drives in a closed loop with a
+#      plant, no recording: the micro:bit cannot hold both), which must identify its plant
+#      with `identify_step` within the interrupt's budget.
 #
 # Needs: rustup target add thumbv7em-none-eabihf thumbv6m-none-eabi;
 #        apt-get install -y qemu-system-arm.
@@ -64,9 +67,32 @@ PIL_RECORDING="$recording" cargo build --release -p pmsm-pil-firmware \
 status=0
 lines=()
 declare -A components
-# Instruction budgets of the full drive step, worst case over the recorded run: a run over its
-# budget fails.
+# Instruction budgets, worst case over the run: a run over its budget fails. The interrupt
+# step per estimator (the current-model MRAS also with MTPA and field weakening, and saturated)
+# and the task step; the identification's step shares the interrupt's largest budget.
 declare -A budgets=([cortex-m4]=1500 [cortex-m0]=4000)
+declare -A isr_budget=(
+  [cortex-m4:isr_mras_current]=1500 [cortex-m0:isr_mras_current]=4000
+  [cortex-m4:isr_flux]=1500 [cortex-m0:isr_flux]=4000
+  [cortex-m4:isr_saturated]=1500 [cortex-m0:isr_saturated]=4000
+  [cortex-m4:isr_nlo]=2600 [cortex-m0:isr_nlo]=6500
+  [cortex-m4:isr_ao]=2300 [cortex-m0:isr_ao]=5600
+  [cortex-m4:isr_mras_emf]=3100 [cortex-m0:isr_mras_emf]=7700
+  [cortex-m4:task]=4000 [cortex-m0:task]=12000
+)
+# The task period (samples), for the mean cost per sample of both steps.
+task_period=8
+# Checks `PIL <cpu> <name> ... insn_max=<n>` of $1 (a log) against its budget.
+check_budget() {
+  local log=$1 cpu=$2 name=$3 budget=${isr_budget[$2:$3]}
+  local worst
+  worst="$(grep -oE "^PIL $cpu $name insn_mean=[0-9]+ insn_max=[0-9]+$" "$log" | sed -E 's/.*insn_max=//')"
+  if [[ -z $worst ]]; then
+    echo "no $name figure"
+  elif ((worst > budget)); then
+    echo "$name insn_max=$worst over the budget of $budget"
+  fi
+}
 for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
   read -r cpu triple <<<"$run"
   run_log="$out/$cpu.log"
@@ -98,19 +124,20 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
     awk '{print $3}' | sort | tr '\n' ' ')"
   [[ -n $names ]] || problems+=("no benchmark figures")
   components[$cpu]="$names"
-  # The instruction budget of the full drive step (worst case over the recorded run), with
-  # the default configuration, with MTPA and field weakening on, and with the voltage on the
-  # current loops' circle and the modulator's hexagon (the bus read at a quarter).
-  budget=${budgets[$cpu]}
-  for step in drive_step drive_step_flux drive_step_saturated; do
-    worst="$(grep -oE "^PIL $cpu $step insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
-      sed -E 's/.*insn_max=//')"
-    if [[ -z $worst ]]; then
-      problems+=("no $step figure")
-    elif ((worst > budget)); then
-      problems+=("$step insn_max=$worst over the budget of $budget")
-    fi
+  # The interrupt step's budget (worst case over the recorded run), with the default
+  # configuration, with MTPA and field weakening on, and with the voltage on the current
+  # loops' circle and the modulator's hexagon (the bus read at a quarter); the task's.
+  for step in isr_mras_current isr_flux isr_saturated task; do
+    p="$(check_budget "$run_log" "$cpu" "$step")"
+    [[ -z $p ]] || problems+=("$p")
   done
+  # The mean cost per sample of both steps: the interrupt's mean and the task's over its
+  # period.
+  isr_mean="$(grep -oE "^PIL $cpu isr_mras_current insn_mean=[0-9]+" "$run_log" | sed -E 's/.*=//')"
+  task_mean="$(grep -oE "^PIL $cpu task insn_mean=[0-9]+" "$run_log" | sed -E 's/.*=//')"
+  if [[ -n $isr_mean && -n $task_mean ]]; then
+    lines+=("PIL $cpu per_sample insn_mean=$((isr_mean + task_mean / task_period)) task_period=$task_period")
+  fi
   if ((${#problems[@]})); then
     status=1
     log "$cpu: ${problems[*]}; last lines of $run_log:"
@@ -133,9 +160,18 @@ if PIL_RECORDING="$recording" cargo build --release -p pmsm-pil-firmware --featu
     grep -E "^# $cpu " "$run_log" | sed 's/^/pil: /' >&2 || true
     mapfile -t got < <(grep -E "^PIL $cpu identify_" "$run_log" || true)
     lines+=("${got[@]}")
+    mapfile -t got < <(grep -E "^PIL $cpu (isr|task)_" "$run_log" || true)
+    lines+=("${got[@]}")
     worst="$(grep -oE "^PIL $cpu identify_step insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
       sed -E 's/.*insn_max=//')"
     budget=${budgets[$cpu]}
+    for step in isr_nlo isr_ao isr_mras_emf; do
+      p="$(check_budget "$run_log" "$cpu" "$step")"
+      if [[ -n $p ]]; then
+        status=1
+        log "$cpu: $p"
+      fi
+    done
     if [[ $rc -ne 0 ]]; then
       status=1
       log "$cpu identification: exit status $rc (did not identify its plant?); last lines:"

@@ -18,7 +18,10 @@ set -euo pipefail
 [ $# = 3 ] || { echo "usage: $0 TARGET FEATURES OUT_DIR" >&2; exit 2; }
 target=$1 features=$2 out=$3
 root=$(cd "$(dirname "$0")/../.." && pwd)
-args=(-q -p pmsm-ffi --lib --release)
+# The workspace's release profile is set for quick host builds; a library for firmware is
+# built as the board's image is, for size and speed: one codegen unit, fat LTO.
+args=(-q -p pmsm-ffi --lib --release --config 'profile.release.lto="fat"'
+  --config profile.release.codegen-units=1)
 if [ "$features" != default ]; then args+=(--no-default-features --features "$features"); fi
 if [ "$target" = host ]; then
   lib=$root/target/release/libpmsm_ffi.a ld=ld objcopy=objcopy ar=ar

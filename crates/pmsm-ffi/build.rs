@@ -27,7 +27,24 @@ const HEADER: &str = "\
  *   a -> b -> c (the rotation of a positive-sequence current); positive speed turns that way.
  * - Timing: the currents are sampled at t_k (PWM centre); the duties pmsm_step returns for
  *   them apply over the PWM period that starts at t_k, [t_k, t_k + T_s): load them into the
- *   preloaded compare registers before the timer's next update event.
+ *   preloaded compare registers before the timer's next update event (or set
+ *   pmsm_config_t.pwm_delay_samples to the periods the timer applies them later).
+ *
+ * Two rates, two contexts (as motor-control firmware is built):
+ * - the control interrupt (ADC end of conversion, once per sample): pmsm_step, and the
+ *   interrupt-side functions pmsm_report_overrun, pmsm_get_state, pmsm_get_estimate,
+ *   pmsm_get_telemetry, pmsm_get_ipd. pmsm_step returns task_due = 1 once every
+ *   PMSM_TASK_PERIOD samples: then pend the task.
+ * - the task, at a priority below the interrupt (a software interrupt, an RTOS thread):
+ *   pmsm_task, and the task-side functions pmsm_start, pmsm_stop, pmsm_clear_fault,
+ *   pmsm_set_speed_ref. The interrupt may preempt the task, never the other way round; the
+ *   task must return within PMSM_TASK_PERIOD sample periods (a late task trips
+ *   PMSM_FAULT_OVERRUN while the drive runs). The two share no lock: they meet in mailboxes
+ *   of atomic 32-bit words (no compare-and-swap: Cortex-M0 too).
+ * - A task-side command (start, stop, a new speed reference, a fault the task detects) acts
+ *   on the outputs from the first pmsm_step after the pmsm_task that took it.
+ * Functions of neither list (init, images, bases, scales, the fault record) run outside
+ *   both, or with both masked.
  */";
 
 /// FNV-1a, 32 bits.

@@ -1,5 +1,5 @@
 /* The smallest firmware that uses the drive: init, then one pmsm_step per PWM interrupt
- * (here a loop over a volatile "ADC"). Built without -DWITH_PMSM, and with it, to measure the
+ * (here a loop over a volatile "ADC") and pmsm_task when a step says it is due. Built without -DWITH_PMSM, and with it, to measure the
  * flash and RAM the library adds (scripts/c-firmware.sh). The drive is designed on the target
  * from a configuration (pmsm_drive_init; -DESTIMATOR=<pmsm_estimator_t> picks the estimator),
  * or with -DFROM_IMAGE loaded from a drive image written on the host (image.S,
@@ -55,6 +55,8 @@ int main(void) {
         ccr[0] = out.compare[0];
         ccr[1] = out.compare[1];
         ccr[2] = out.compare[2];
+        /* the task, pended by the ISR in firmware */
+        if (out.task_due) pmsm_task(drive);
 #else
         ccr[0] = (uint16_t)adc[0];
         ccr[1] = (uint16_t)adc[1];

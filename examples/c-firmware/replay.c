@@ -103,8 +103,10 @@ int replay_run(const int32_t *words, size_t n_words, const void *image, size_t i
         pmsm_output_t out;
         pmsm_state_info_t s;
         pmsm_estimate_t e;
-        int ok = pmsm_step(drive, &in, &out) == PMSM_OK
-            && pmsm_get_state(drive, &s) == PMSM_OK
+        int ok = pmsm_step(drive, &in, &out) == PMSM_OK;
+        /* The task, run here after the step that made it due (firmware pends it instead). */
+        if (ok && out.task_due) ok = pmsm_task(drive) == PMSM_OK;
+        ok = ok && pmsm_get_state(drive, &s) == PMSM_OK
             && pmsm_get_estimate(drive, &e) == PMSM_OK;
         int32_t got[WORDS];
         for (int w = 0; w < WORDS; w++) got[w] = row[w];

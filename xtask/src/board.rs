@@ -7,7 +7,7 @@ pub fn section() -> String {
     let mut s = String::from(
         "## B-G431B-ESC1 firmware size\n\n\
          `scripts/firmware-size.sh` builds `examples/b-g431b-esc1` (release, `thumbv7em-none-eabihf`, \
-         `opt-level = \"z\"` with the core at 3, fat LTO) and checks it against the limits of 64 KiB \
+         `opt-level = \"z\"` with the core at \"s\", fat LTO) and checks it against the limits of 64 KiB \
          of flash and 16 KiB of static RAM and against the snapshot \
          `examples/b-g431b-esc1/size-snapshot.txt` (CI fails on a 5 % drift).\n\n",
     );

@@ -27,9 +27,15 @@ pub fn section() -> String {
     let mut table: BTreeMap<String, [String; 4]> = BTreeMap::new();
     let mut replay = Vec::new();
     let mut closed = Vec::new();
+    let mut per_sample = Vec::new();
     for line in text.lines() {
         let f: Vec<&str> = line.split_whitespace().collect();
         match f.as_slice() {
+            ["PIL", cpu, "per_sample", mean, period] => per_sample.push(format!(
+                "{cpu} {} instructions ({})",
+                mean.trim_start_matches("insn_mean="),
+                period.replace('=', " ")
+            )),
             ["PIL", cpu, name, mean, max] if mean.starts_with("insn_mean=") => {
                 let col = if *cpu == "cortex-m4" { 0 } else { 2 };
                 let e = table.entry((*name).to_owned()).or_default();
@@ -67,34 +73,47 @@ pub fn section() -> String {
             )
         })
     };
-    if let Some(v) = table.get("drive_step") {
+    if let Some(v) = table.get("isr_mras_current") {
         s.push_str(&format!(
-            "Full drive step, current-model MRAS, worst case: Cortex-M4 {}, Cortex-M0 {}.\n\n",
+            "The drive's interrupt step (`DriveIsr::step`, docs/drive.md \"two rates\"), \
+             current-model MRAS, worst case: Cortex-M4 {}, Cortex-M0 {}.\n\n",
             over(&v[1], 1500),
             over(&v[3], 4000)
         ));
     }
-    if let Some(v) = table.get("drive_step_flux") {
+    if let Some(v) = table.get("isr_flux") {
         s.push_str(&format!(
-            "The same with MTPA and field weakening on and the speed loop every second sample \
-             (`drive_step_flux`, docs/field-weakening.md \"Cost\"): Cortex-M4 {}, \
+            "The same with MTPA and field weakening on (`isr_flux`; their updates run in the \
+             task, `task_flux`, docs/field-weakening.md \"Cost\"): Cortex-M4 {}, \
              Cortex-M0 {}.\n\n",
             over(&v[1], 1500),
             over(&v[3], 4000)
         ));
     }
-    if let Some(v) = table.get("drive_step_saturated") {
+    if let Some(v) = table.get("isr_saturated") {
         s.push_str(&format!(
-            "With the voltage on the circle (`drive_step_saturated`: the default drive on the \
+            "With the voltage on the circle (`isr_saturated`: the default drive on the \
              same inputs with the bus read at a quarter of the recorded one, so that the current \
-             loops' circle and the modulator's hexagon act in 75 of its 388 steps; held to the \
-             budget like the others): Cortex-M4 {}, Cortex-M0 {}; mean {} and {} \
-             (docs/drive.md, \"speed loop: the reference's weight\", profiles a saturated \
-             step).\n\n",
+             loops' circle and the modulator's hexagon act; held to the budget like the \
+             others): Cortex-M4 {}, Cortex-M0 {}; mean {} and {}.\n\n",
             over(&v[1], 1500),
             over(&v[3], 4000),
             v[0],
             v[2]
+        ));
+    }
+    if let Some(v) = table.get("task") {
+        s.push_str(&format!(
+            "The drive's task step (`DriveTask::step`, once per task period), worst case: \
+             Cortex-M4 {}, Cortex-M0 {}.\n\n",
+            over(&v[1], 4000),
+            over(&v[3], 12000)
+        ));
+    }
+    if !per_sample.is_empty() {
+        s.push_str(&format!(
+            "Both steps per sample (the interrupt's mean and the task's over its period): {}.\n\n",
+            per_sample.join("; ")
         ));
     }
     s

@@ -63,8 +63,9 @@ fn a_dead_time_the_drive_was_not_told_is_learnt_while_running() {
 }
 
 /// Where the standstill calibration already measured the inverter (3 µs and 1 µs told 2 µs),
-/// the running estimate (two batches or more under load) agrees with it within 3 % of the told
-/// `V_dead` (0.45 V; the calibration's own dead band): the two
+/// the running estimate (eight batches or more under load: one batch's estimate scatters by
+/// ±3 % about their mean) agrees with it within 3 % of the told `V_dead` (0.45 V; the
+/// calibration's own dead band): the two
 /// measurements, one at standstill through `R`, one at speed through the sixth harmonic, find
 /// the same inverter.
 #[test]
@@ -78,12 +79,12 @@ fn the_running_estimate_agrees_with_the_standstill_calibration() {
             let sc = scenario(
                 "b-800rpm-load.toml",
                 &[
-                    ("duration_s = 2.0", "duration_s = 2.3"),
+                    ("duration_s = 2.0", "duration_s = 3.2"),
                     ("dead_time_s = 2e-6", &dt),
                     ("deadtime_compensation = true", &control),
                     (
                         "t_s = [0.0, 1.0, 1.01, 1.6, 1.61]",
-                        "t_s = [0.0, 1.0, 1.01, 2.2, 2.21]",
+                        "t_s = [0.0, 1.0, 1.01, 3.2, 3.21]",
                     ),
                 ],
             );
@@ -91,7 +92,7 @@ fn the_running_estimate_agrees_with_the_standstill_calibration() {
         };
         let calibrated = learn(false).deadtime_scale;
         let status = learn(true).learner.unwrap();
-        assert!(status.batches >= 2, "{status:?}");
+        assert!(status.batches >= 8, "{status:?}");
         let running = f64::from(status.scale);
         println!("{dead_time} s: calibration {calibrated:.3}, then running {running:.3}");
         assert!(

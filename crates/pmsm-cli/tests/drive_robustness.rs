@@ -49,7 +49,7 @@ fn the_drive_is_told_its_dead_time_apart_from_the_plant() {
     assert_eq!(plant.inverter().model().params.dead_time_s, 2e-6);
     assert_eq!(plant.inverter().model().sign_band_a, 0.0);
     // The compensation's dead-time voltage: 1.5 µs · 14 kHz · 540 V = 11.34 V, not 15.12 V.
-    let v = setup.drive.config().deadtime().v_dead_nominal_v;
+    let v = setup.config.deadtime().v_dead_nominal_v;
     assert!((v - 11.34).abs() < 1e-9, "{v}");
 
     // The hard sign in the plant, the drive told the right dead time: an ordinary start, the
@@ -150,7 +150,7 @@ fn auto_start_up_aligns_a_surface_motor_and_detects_on_a_salient_one() {
         ],
     );
     let setup = build_drive(&sc).unwrap();
-    assert_eq!(setup.drive.config().design.startup, StartupMode::Align);
+    assert_eq!(setup.config.design.startup, StartupMode::Align);
 
     // Motor B (23 % saliency) with auto: the detection, then 300 r/min.
     let text = MOTOR_B_SHORT.replace("startup = \"ipd\"\n", "startup = \"auto\"\n");

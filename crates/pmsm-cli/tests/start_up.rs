@@ -35,10 +35,15 @@ fn the_alignment_damps_a_heavy_rotors_swing() {
     // stalled on the ramp.
     for theta0 in [117.0, 170.0, -100.0] {
         let rows = run(HEAVY_540V, theta0, "mras-current", 854.5);
-        let end = rows
+        let begin = rows
             .iter()
-            .position(|r| r.state != DriveState::Align && r.t_s > 0.0)
+            .position(|r| r.state == DriveState::Align)
             .unwrap();
+        let end = begin
+            + rows[begin..]
+                .iter()
+                .position(|r| r.state != DriveState::Align)
+                .unwrap();
         let r = &rows[end];
         assert!(
             r.theta_e_rad.abs() < 0.05 && r.speed_rpm.abs() < 2.0,

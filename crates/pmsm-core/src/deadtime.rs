@@ -245,6 +245,27 @@ impl DeadTimeConfig {
         }
     }
 
+    /// The compensation's bus terms as bits (`k_bus`, `v_const`): what the calibration and
+    /// the learner scale, sent from the drive's task to its interrupt side.
+    pub(crate) fn bus_terms(&self) -> (i32, i32) {
+        (self.k_bus.bits(), self.v_const.to_bits())
+    }
+
+    /// The same compensation with the bus terms of [`DeadTimeConfig::bus_terms`].
+    pub(crate) fn with_bus_terms(&self, (k_bus, v_const): (i32, i32)) -> Self {
+        Self {
+            k_bus: Coef::from_bits(k_bus),
+            v_const: Pu::from_bits(v_const),
+            ..*self
+        }
+    }
+
+    /// Whose current's signs the compensation takes.
+    #[inline(always)]
+    pub(crate) fn source(&self) -> CurrentSource {
+        self.design.source
+    }
+
     /// `V_dead` (eq. 8) for the measured bus `vdc`, per unit of `V_b`; zero for a bus at or
     /// below zero.
     pub fn v_dead(&self, vdc: Pu) -> Pu {
@@ -376,14 +397,6 @@ pub(crate) struct DeadTimeBus {
     third: i32,
     /// `V_dead/√3`, Q8.26.
     inv_sqrt3: i32,
-}
-
-impl DeadTimeBus {
-    /// `V_dead` of the last bus reading, [`Pu`] bits (`3/4` of `V_dead/3` in Q8.26; zero
-    /// before the first).
-    pub(crate) fn v_dead_bits(&self) -> u32 {
-        (self.third - (self.third >> 2)).unsigned_abs()
-    }
 }
 
 /// One in Q4.28 (the format of the signs).

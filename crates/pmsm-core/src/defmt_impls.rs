@@ -9,7 +9,7 @@
 use defmt::{Format, Formatter, write};
 
 use crate::angle::SinCos;
-use crate::drive::{DriveInput, Fault};
+use crate::drive::{DriveInput, Fault, Telemetry};
 use crate::frames::{Abc, AlphaBeta, Dq};
 use crate::ipd::{IpdFault, IpdResult};
 use crate::num::{Pu, Unit};
@@ -48,6 +48,22 @@ impl Format for Fault {
                 write!(f, "{=str}", self.name())
             }
         }
+    }
+}
+
+impl Format for Telemetry {
+    fn format(&self, f: Formatter<'_>) {
+        write!(
+            f,
+            "Telemetry {{ estimate: {}, theta: {=i32}, i_dq: {}, i_ref: {}, v: {}, saturated: {=bool}, health: {=f32} }}",
+            self.estimate,
+            self.theta.0,
+            self.i_dq,
+            self.i_ref,
+            self.v,
+            self.saturated,
+            pu(self.health)
+        )
     }
 }
 

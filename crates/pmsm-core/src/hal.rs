@@ -2,7 +2,8 @@
 //! PWM or ADC traits), and one control interrupt's work over them.
 //!
 //! A binding (`pmsm-stm32` for the STM32G4) implements [`ThreePhasePwm`] for its timer and
-//! [`PhaseCurrentSampler`] for its ADC; its control interrupt calls [`control_step`]. Neither
+//! [`PhaseCurrentSampler`] for its ADC; its control interrupt calls [`control_step`] (the
+//! drive's interrupt side) and pends its task when [`DriveIsr::task_due`]. Neither
 //! trait has an error path: a timer or an ADC that cannot do its job is a configuration
 //! problem of the binding's constructor, and a bad sample is the drive's to judge (its
 //! current-sensor checks).
@@ -14,7 +15,7 @@
 mod embedded;
 pub use embedded::{DutyCyclePwm, PwmErrors};
 
-use crate::drive::{Drive, DriveInput, DriveOutput};
+use crate::drive::{DriveInput, DriveIsr, DriveOutput, Handoff};
 use crate::svpwm::Duties;
 
 /// A three-phase inverter driven by complementary PWM.
@@ -36,15 +37,17 @@ pub trait PhaseCurrentSampler {
     fn sample(&mut self) -> DriveInput;
 }
 
-/// One control interrupt: sample, step the drive, apply its output (duties first, then the
-/// outputs on; or the outputs off).
+/// One control interrupt: sample, step the drive's interrupt side, apply its output (duties
+/// first, then the outputs on; or the outputs off). When [`DriveIsr::task_due`] after it,
+/// the binding pends the task that runs [`crate::DriveTask::step`] on the same `handoff`.
 pub fn control_step<P: ThreePhasePwm, S: PhaseCurrentSampler>(
-    drive: &mut Drive,
+    isr: &mut DriveIsr,
+    handoff: &Handoff,
     pwm: &mut P,
     sampler: &mut S,
 ) -> DriveOutput {
     let input = sampler.sample();
-    let out = drive.step(&input);
+    let out = isr.step(handoff, &input);
     apply(pwm, &out);
     out
 }

@@ -9,7 +9,7 @@
 //! ```
 //! use pmsm_core::{
 //!     Abc, Angle, Drive, DriveConfig, DriveInput, DriveOptions, DriveState, InverterParams,
-//!     MotorParams, StartupMode,
+//!     MotorParams, StartupMode, TASK_PERIOD,
 //! };
 //!
 //! // A 1.1 kW interior motor on a 540 V inverter switching at 14 kHz.
@@ -31,21 +31,27 @@
 //! let mut drive = Drive::new(config);
 //! drive.set_speed_ref(base.speed_pu(100.0));
 //! drive.start();
-//! assert_eq!(drive.state(), DriveState::Run);
+//! assert_eq!(drive.task().state(), DriveState::Run);
 //!
-//! // One step per PWM period: the sampled phase currents and bus in, three duties out.
+//! // One step per PWM period: the sampled phase currents and bus in, three duties out. The
+//! // task runs after the step that ends each task period; the interrupt side takes its
+//! // command at the next step: the outputs switch from the second task period on.
 //! let input = DriveInput {
 //!     i_abc: Abc::default(),
 //!     vdc: base.voltage_pu(540.0),
 //! };
-//! for _ in 0..10 {
+//! for k in 0..6 * TASK_PERIOD {
 //!     let out = drive.step(&input);
-//!     assert!(out.pwm_on);
+//!     assert_eq!(out.pwm_on, k >= TASK_PERIOD);
 //!     let [a, b, c] = out.duties.to_f64();
 //!     assert!([a, b, c].iter().all(|d| (0.0..=1.0).contains(d)));
+//!     if k == 2 * TASK_PERIOD {
+//!         // At rest with a positive speed reference, the speed loop asks for positive torque
+//!         // (from its first run in `Run`, the task's second).
+//!         assert!(drive.telemetry().i_ref.q > pmsm_core::Pu::ZERO);
+//!     }
 //! }
-//! // At rest with a positive speed reference, the speed loop asks for positive torque.
-//! assert!(drive.telemetry().i_ref.q > pmsm_core::Pu::ZERO);
+//! assert_eq!(drive.state(), DriveState::Run);
 //! # Ok::<(), pmsm_core::ConfigError>(())
 //! ```
 //!
@@ -120,8 +126,8 @@ pub use deadtime::{
 pub use drive::{ACTIVE_SHORT, MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, RECTIFY_GRACE_S};
 pub use drive::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput,
-    DriveOptions, DriveOutput, DriveState, Fault, OpenLoopDesign, Protection, SpeedRefLimit,
-    StartupMode, Telemetry,
+    DriveIsr, DriveOptions, DriveOutput, DriveState, DriveTask, Fault, Handoff, OpenLoopDesign,
+    Protection, SpeedRefLimit, StartupMode, TASK_PERIOD, Telemetry,
 };
 pub use drive::{
     DistortionDesign, DistortionFrozen, DistortionLearner, DistortionStatus, Frozen,

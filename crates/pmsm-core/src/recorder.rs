@@ -2,7 +2,7 @@
 
 use heapless::HistoryBuf;
 
-use crate::drive::{Drive, DriveInput, DriveState, Fault};
+use crate::drive::{DriveInput, DriveIsr, DriveState, Fault};
 use crate::frames::{Abc, AlphaBeta};
 use crate::num::Pu;
 use crate::observer::Estimate;
@@ -24,8 +24,8 @@ pub struct FaultSample {
 
 /// The last `N` samples before a fault.
 ///
-/// It is not part of [`Drive`] (the drive step's instruction budget stays what it is): the
-/// caller feeds it after each step, `recorder.record(&drive, &input)`, at a priority and a
+/// It is not part of [`DriveIsr`](crate::DriveIsr) (the interrupt step's budget stays what
+/// it is): the caller feeds it after each step, `recorder.record(&isr, &input)`, at a priority and a
 /// cost of its choosing (a copy of eleven words into a ring buffer). It keeps the newest `N`
 /// samples in a [`heapless::HistoryBuf`] and freezes when the drive enters `Fault`, so the
 /// samples that led to the fault stay, ending with the one at which the drive tripped.
@@ -45,6 +45,9 @@ pub struct FaultSample {
 pub struct FaultRecorder<const N: usize> {
     samples: HistoryBuf<FaultSample, N>,
     fault: Option<Fault>,
+    /// The interrupt side's trip count at the first sample since (re)arming: a trip still
+    /// latched then (cleared by the task, the outputs not yet back) is not a new fault.
+    old_trips: Option<u32>,
 }
 
 impl<const N: usize> Default for FaultRecorder<N> {
@@ -59,17 +62,20 @@ impl<const N: usize> FaultRecorder<N> {
         Self {
             samples: HistoryBuf::new(),
             fault: None,
+            old_trips: None,
         }
     }
 
-    /// Records the sample that `drive` has just stepped on `input`, unless frozen. Returns
-    /// true at the sample that freezes it (the drive's first sample in `Fault`).
-    pub fn record(&mut self, drive: &Drive, input: &DriveInput) -> bool {
+    /// Records the sample that the drive's interrupt side `isr` has just stepped on `input`,
+    /// unless frozen. Returns true at the sample that freezes it (the interrupt side's first
+    /// sample in `Fault`: its own trip, or the task's fault when it took it).
+    pub fn record(&mut self, isr: &DriveIsr, input: &DriveInput) -> bool {
         if self.fault.is_some() || !self.position_in_range() {
             return false;
         }
-        let state = drive.state();
-        let t = drive.telemetry();
+        let state = isr.state();
+        let old = *self.old_trips.get_or_insert(isr.trips());
+        let t = isr.telemetry();
         self.samples.write(FaultSample {
             i_abc: input.i_abc,
             vdc: input.vdc,
@@ -77,7 +83,9 @@ impl<const N: usize> FaultRecorder<N> {
             estimate: t.estimate,
             state: state.code(),
         });
-        if let DriveState::Fault(f) = state {
+        if let DriveState::Fault(f) = state
+            && isr.trips() != old
+        {
             self.fault = Some(f);
             return true;
         }
@@ -136,13 +144,14 @@ impl<const N: usize> FaultRecorder<N> {
     pub fn rearm(&mut self) {
         self.samples.clear();
         self.fault = None;
+        self.old_trips = None;
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drive::{DriveConfig, DriveDesign, StartupMode};
+    use crate::drive::{Drive, DriveConfig, DriveDesign, StartupMode};
     use crate::observer::EstimatorKind;
     use crate::params::{InverterParams, MotorParams};
     use crate::units::PerUnit;
@@ -181,7 +190,7 @@ mod tests {
             // The bus collapses from sample 30 on: under-voltage trip.
             let x = input(k, if k < 30 { 1.732 } else { 0.05 });
             d.step(&x);
-            if rec.record(&d, &x) {
+            if rec.record(d.isr(), &x) {
                 assert!(froze_at.is_none(), "froze twice");
                 froze_at = Some(k);
             }
@@ -211,7 +220,7 @@ mod tests {
         for k in 40..60 {
             let x = input(k, 1.732);
             d.step(&x);
-            assert!(!rec.record(&d, &x));
+            assert!(!rec.record(d.isr(), &x));
         }
         assert_eq!(*rec.samples().next().unwrap(), first);
         assert_eq!(rec.len(), 8);
@@ -228,11 +237,11 @@ mod tests {
         for k in 0..3 {
             let x = input(k, 1.732);
             d.step(&x);
-            rec.record(&d, &x);
+            rec.record(d.isr(), &x);
             let s = rec.samples().last().unwrap();
             let t = d.telemetry();
             assert_eq!((s.v, s.estimate), (t.v, t.estimate));
-            assert_eq!(s.state, d.state().code());
+            assert_eq!(s.state, d.isr().state().code());
         }
         assert_eq!(rec.len(), 3);
         assert!(!rec.is_frozen());

@@ -20,7 +20,24 @@
  *   a -> b -> c (the rotation of a positive-sequence current); positive speed turns that way.
  * - Timing: the currents are sampled at t_k (PWM centre); the duties pmsm_step returns for
  *   them apply over the PWM period that starts at t_k, [t_k, t_k + T_s): load them into the
- *   preloaded compare registers before the timer's next update event.
+ *   preloaded compare registers before the timer's next update event (or set
+ *   pmsm_config_t.pwm_delay_samples to the periods the timer applies them later).
+ *
+ * Two rates, two contexts (as motor-control firmware is built):
+ * - the control interrupt (ADC end of conversion, once per sample): pmsm_step, and the
+ *   interrupt-side functions pmsm_report_overrun, pmsm_get_state, pmsm_get_estimate,
+ *   pmsm_get_telemetry, pmsm_get_ipd. pmsm_step returns task_due = 1 once every
+ *   PMSM_TASK_PERIOD samples: then pend the task.
+ * - the task, at a priority below the interrupt (a software interrupt, an RTOS thread):
+ *   pmsm_task, and the task-side functions pmsm_start, pmsm_stop, pmsm_clear_fault,
+ *   pmsm_set_speed_ref. The interrupt may preempt the task, never the other way round; the
+ *   task must return within PMSM_TASK_PERIOD sample periods (a late task trips
+ *   PMSM_FAULT_OVERRUN while the drive runs). The two share no lock: they meet in mailboxes
+ *   of atomic 32-bit words (no compare-and-swap: Cortex-M0 too).
+ * - A task-side command (start, stop, a new speed reference, a fault the task detects) acts
+ *   on the outputs from the first pmsm_step after the pmsm_task that took it.
+ * Functions of neither list (init, images, bases, scales, the fault record) run outside
+ *   both, or with both masked.
  */
 
 #ifndef PMSM_H
@@ -40,13 +57,20 @@
 #define PMSM_IMAGE_HEADER_SIZE 16
 
 /**
+ * Samples per task period: `pmsm_step` sets `pmsm_output_t.task_due` once per this many
+ * steps, and `pmsm_task` must return within as many sample periods.
+ */
+#define PMSM_TASK_PERIOD 8
+
+/**
  * Depth of the fault recorder every drive carries, samples (`pmsm_fault_record_get`).
  *
  * 64 samples: 4.6 ms at 14 kHz, 6.4 ms at 10 kHz: the trip and the few milliseconds before
  * it, several current-loop rise times, enough to tell a current spike from a loop gone
  * unstable or an estimate running away. A sample is 44 bytes, so the recorder takes 2.8 KiB
- * beside the drive's 2.2 KiB in `PMSM_STORAGE_SIZE`; one electrical period at low speed (a
- * thousand samples and more) would not fit the RAM of the small parts this library targets.
+ * beside the drive's 3.4 KiB (both rates) in `PMSM_STORAGE_SIZE`; one electrical period at
+ * low speed (a thousand samples and more) would not fit the RAM of the small parts this
+ * library targets.
  */
 #define PMSM_FAULT_RECORD_DEPTH 64
 
@@ -55,12 +79,12 @@
  * target, bytes. The C firmware can declare `static pmsm_storage_t storage;` (`sizeof` =
  * this, aligned to 8).
  */
-#define PMSM_STORAGE_SIZE 6144
+#define PMSM_STORAGE_SIZE 8192
 
 /**
  * `PMSM_STORAGE_SIZE / 8`: the `uint64_t` words of `pmsm_storage_t`.
  */
-#define PMSM_STORAGE_WORDS 768
+#define PMSM_STORAGE_WORDS 1024
 
 /**
  * Status returned by every function that can fail. `PMSM_OK` (0) is success; errors are
@@ -508,6 +532,13 @@ typedef struct {
    * Gain of the back-EMF observers, rad/s (optional).
    */
   double observer_gain_rad_s;
+  /**
+   * Control samples between a step's return and the PWM period its duties act over (0, 1
+   * or 2): 1 for a timer whose compare registers are preloaded and load at the next update
+   * (an STM32 TIM1 with OCxPE set), 0 when the duties act over the coming period. The drive
+   * turns its voltage further and gives its estimator the voltage that acted.
+   */
+  uint32_t pwm_delay_samples;
 } pmsm_config_t;
 
 /**
@@ -564,6 +595,10 @@ typedef struct {
    * The state after this step, a `pmsm_state_t`.
    */
   uint8_t state;
+  /**
+   * 1 when this step ended a task period: pend the task that calls `pmsm_task`.
+   */
+  uint8_t task_due;
 } pmsm_output_t;
 
 /**
@@ -847,29 +882,34 @@ pmsm_status_t pmsm_drive_init(void *storage,
 
 /**
  * Starts the drive from `PMSM_STATE_IDLE` with the configured start-up (IPD, alignment or
- * known angle) and empties the fault recorder; does nothing in other states.
+ * known angle) and empties the fault recorder; does nothing in other states. Acts at the
+ * task's next `pmsm_task`; the outputs follow from the `pmsm_step` after it.
  *
  * # Safety
  * `drive` is NULL or a handle from `pmsm_drive_init` (or storage of `pmsm_drive_size()`
- * bytes), not used concurrently (e.g. from the ISR) during the call.
+ * bytes). A task-side function: call it from the context of `pmsm_task`, or where
+ * `pmsm_task` cannot run during the call (and, for the recorder, not during a `pmsm_step`:
+ * with the control interrupt masked, or before the drive runs).
  */
 pmsm_status_t pmsm_start(pmsm_drive_t *drive);
 
 /**
  * Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault; the fault
- * record stays frozen until the next `pmsm_start`).
+ * record stays frozen until the next `pmsm_start`), from the `pmsm_step` after the next
+ * `pmsm_task`.
  *
  * # Safety
- * As `pmsm_start`.
+ * As `pmsm_start` (a task-side function).
  */
 pmsm_status_t pmsm_stop(pmsm_drive_t *drive);
 
 /**
  * Leaves `PMSM_STATE_FAULT` for `PMSM_STATE_IDLE` (then `pmsm_start` again) and empties the
- * fault recorder (read it first); does nothing in other states.
+ * fault recorder (read it first); does nothing in other states. A trip of the interrupt
+ * side reaches the task at its next `pmsm_task`: clear after it.
  *
  * # Safety
- * As `pmsm_start`.
+ * As `pmsm_start` (a task-side function).
  */
 pmsm_status_t pmsm_clear_fault(pmsm_drive_t *drive);
 
@@ -877,34 +917,55 @@ pmsm_status_t pmsm_clear_fault(pmsm_drive_t *drive);
  * Reports that a control step did not finish within its period (for example: the PWM
  * update interrupt found the ADC interrupt still running, or a cycle counter read at the end
  * of the ISR exceeded the period). Trips `PMSM_FAULT_OVERRUN` (outputs off from the next
- * step on) unless the drive is idle or already faulted. Integer only, ISR-safe.
+ * step on) unless the drive is idle or already faulted. Integer only; an interrupt-side
+ * function.
  *
  * # Safety
- * As `pmsm_start`.
+ * `drive` as `pmsm_start`; call it from the context of `pmsm_step` (or with it masked).
  */
 pmsm_status_t pmsm_report_overrun(pmsm_drive_t *drive);
 
 /**
  * Sets the speed reference: signed electrical speed, Q8.24 per unit of `omega_b`
- * (`pmsm_get_bases`; `pmsm_scale_speed` converts r/min). Takes effect at the next step.
+ * (`pmsm_get_bases`; `pmsm_scale_speed` converts r/min). Taken at the task's next
+ * `pmsm_task`.
  *
  * # Safety
- * As `pmsm_start`.
+ * As `pmsm_start` (a task-side function).
  */
 pmsm_status_t pmsm_set_speed_ref(pmsm_drive_t *drive, int32_t omega);
 
 /**
- * One control sample, integer arithmetic only: from the phase currents and the bus voltage
- * sampled at the PWM centre (`input`, Q8.24 pu) to the duties of the next period (`output`).
- * Call it once per sample period (`pmsm_config_t.sample_hz`) from the ADC/PWM interrupt. The
- * drive is not stepped when a pointer is NULL or invalid. Also records the sample in the
- * drive's fault recorder (`pmsm_fault_record_get`) until a fault freezes it.
+ * The interrupt step, once per control sample, integer arithmetic only: from the phase
+ * currents and the bus voltage sampled at the PWM centre (`input`, Q8.24 pu) to the duties
+ * of the next period (`output`). Call it once per sample period (`pmsm_config_t.sample_hz`)
+ * from the ADC/PWM interrupt. When `output->task_due` is 1, a task period has ended: pend
+ * the task that calls `pmsm_task`, at a lower priority; it must return before the next task
+ * period ends (`PMSM_TASK_PERIOD` samples later), else the drive trips
+ * `PMSM_FAULT_OVERRUN`. The drive is not stepped when a pointer is NULL or invalid. Also
+ * records the sample in the drive's fault recorder (`pmsm_fault_record_get`) until a fault
+ * freezes it.
  *
  * # Safety
- * `drive` as `pmsm_start`; `input` NULL or pointing to a `pmsm_input_t`; `output` NULL or
- * pointing to a writable `pmsm_output_t`.
+ * `drive` as `pmsm_start`, called from the control interrupt only (it may preempt
+ * `pmsm_task`, not be preempted by it); `input` NULL or pointing to a `pmsm_input_t`;
+ * `output` NULL or pointing to a writable `pmsm_output_t`.
  */
 pmsm_status_t pmsm_step(pmsm_drive_t *drive, const pmsm_input_t *input, pmsm_output_t *output);
+
+/**
+ * The task step, once per task period (`PMSM_TASK_PERIOD` samples), at a priority below the
+ * control interrupt, pended when `pmsm_step` returns `task_due`: the state machine, the speed
+ * loop, the d-axis reference, the slower fault checks. Its result acts from the next
+ * `pmsm_step`; it must return before the next task period ends (else `PMSM_FAULT_OVERRUN`).
+ * Integer, but for a few double-precision operations at the end of the standstill dead-time
+ * calibration (once per start); no allocation.
+ *
+ * # Safety
+ * `drive` as `pmsm_start`; called from one context (the task's), which `pmsm_step` may
+ * preempt.
+ */
+pmsm_status_t pmsm_task(pmsm_drive_t *drive);
 
 /**
  * Bytes of the image of a drive of this library (`PMSM_IMAGE_HEADER_SIZE` and the drive
@@ -946,7 +1007,8 @@ pmsm_status_t pmsm_drive_init_image(void *storage,
  * The state and the latched fault.
  *
  * # Safety
- * `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_state_info_t`.
+ * `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+ * an interrupt-side read; `out` NULL or pointing to a writable `pmsm_state_info_t`.
  */
 pmsm_status_t pmsm_get_state(pmsm_drive_t *drive, pmsm_state_info_t *out);
 
@@ -954,7 +1016,8 @@ pmsm_status_t pmsm_get_state(pmsm_drive_t *drive, pmsm_state_info_t *out);
  * The rotor angle and speed estimated at the last step (integer only, ISR-safe).
  *
  * # Safety
- * `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_estimate_t`.
+ * `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+ * an interrupt-side read; `out` NULL or pointing to a writable `pmsm_estimate_t`.
  */
 pmsm_status_t pmsm_get_estimate(pmsm_drive_t *drive, pmsm_estimate_t *out);
 
@@ -971,7 +1034,8 @@ pmsm_status_t pmsm_get_bases(pmsm_drive_t *drive, pmsm_bases_t *out);
  * the commanded voltage, the estimate and the estimator's health figure (integer only).
  *
  * # Safety
- * `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_telemetry_t`.
+ * `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+ * an interrupt-side read; `out` NULL or pointing to a writable `pmsm_telemetry_t`.
  */
 pmsm_status_t pmsm_get_telemetry(pmsm_drive_t *drive, pmsm_telemetry_t *out);
 
@@ -981,7 +1045,8 @@ pmsm_status_t pmsm_get_telemetry(pmsm_drive_t *drive, pmsm_telemetry_t *out);
  * `PMSM_FAULT_INITIAL_POSITION` (integer only).
  *
  * # Safety
- * `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_ipd_t`.
+ * `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+ * an interrupt-side read; `out` NULL or pointing to a writable `pmsm_ipd_t`.
  */
 pmsm_status_t pmsm_get_ipd(pmsm_drive_t *drive, pmsm_ipd_t *out);
 

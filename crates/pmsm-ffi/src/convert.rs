@@ -150,6 +150,14 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
         design.speed.current_limit_a = a;
         design.open_loop.current_a = design.open_loop.current_a.min(a);
     }
+    design.pwm_delay_samples = u8::try_from(c.pwm_delay_samples)
+        .ok()
+        .filter(|&d| d <= pmsm_core::MAX_PWM_DELAY_SAMPLES)
+        .ok_or(Rejected::Range {
+            field: "pwm_delay_samples",
+            value: c.pwm_delay_samples,
+            allowed: "0 to 2",
+        })?;
     let period = u16::try_from(c.pwm_period_ticks).map_err(|_| Rejected::Range {
         field: "pwm_period_ticks",
         value: c.pwm_period_ticks,

@@ -3,13 +3,13 @@
 
 use crate::convert::{self, CBuf};
 use crate::handle::pmsm_drive_t;
-use crate::handle::{DriveCore, MARK, aligned, arg, drive, emplace, put, status};
+use crate::handle::{aligned, arg, emplace, isr_side, put, status, task_side};
 use crate::types::*;
 use core::ffi::{c_char, c_void};
 use core::mem::{align_of, size_of};
 use pmsm_core::Abc;
 use pmsm_core::Pu;
-use pmsm_core::{Drive, DriveInput, DriveState};
+use pmsm_core::{DriveInput, DriveState};
 
 /// Bytes of storage a drive needs (`<= PMSM_STORAGE_SIZE`).
 #[unsafe(no_mangle)]
@@ -150,96 +150,114 @@ pub unsafe extern "C" fn pmsm_drive_init(
         Ok(b) => b,
         Err(r) => return r.status(),
     };
-    let value = DriveCore {
-        mark: MARK,
-        period: built.period,
-        pole_pairs: built.pole_pairs,
-        drive: Drive::new(built.config),
-    };
     // SAFETY: `p` is non-null, aligned and has room for a `pmsm_drive_t` (checked above),
     // writable and not otherwise in use per the contract.
-    unsafe { emplace(p, value) };
+    unsafe { emplace(p, &built.config, built.period, built.pole_pairs) };
     // SAFETY: `drive` is non-null and aligned (checked), writable per the contract.
     unsafe { put(drive, p) }
 }
 
 /// Starts the drive from `PMSM_STATE_IDLE` with the configured start-up (IPD, alignment or
-/// known angle) and empties the fault recorder; does nothing in other states.
+/// known angle) and empties the fault recorder; does nothing in other states. Acts at the
+/// task's next `pmsm_task`; the outputs follow from the `pmsm_step` after it.
 ///
 /// # Safety
 /// `drive` is NULL or a handle from `pmsm_drive_init` (or storage of `pmsm_drive_size()`
-/// bytes), not used concurrently (e.g. from the ISR) during the call.
+/// bytes). A task-side function: call it from the context of `pmsm_task`, or where
+/// `pmsm_task` cannot run during the call (and, for the recorder, not during a `pmsm_step`:
+/// with the control interrupt masked, or before the drive runs).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_start(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| {
-        if d.core.drive.state() == DriveState::Idle {
-            d.recorder.rearm();
+    let (task, _) = match unsafe { task_side(drive) } {
+        Ok(t) => t,
+        Err(e) => return e,
+    };
+    if task.state() == DriveState::Idle {
+        // SAFETY: forwarded contract (the recorder is not in use during the call).
+        if let Ok(i) = unsafe { isr_side(drive) } {
+            i.recorder.rearm();
         }
-        d.core.drive.start()
-    }))
+    }
+    task.start();
+    pmsm_status_t::PMSM_OK
 }
 
 /// Turns the outputs off and returns to `PMSM_STATE_IDLE` (also from a fault; the fault
-/// record stays frozen until the next `pmsm_start`).
+/// record stays frozen until the next `pmsm_start`), from the `pmsm_step` after the next
+/// `pmsm_task`.
 ///
 /// # Safety
-/// As `pmsm_start`.
+/// As `pmsm_start` (a task-side function).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_stop(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.core.drive.stop()))
+    status(unsafe { task_side(drive) }.map(|(t, _)| t.stop()))
 }
 
 /// Leaves `PMSM_STATE_FAULT` for `PMSM_STATE_IDLE` (then `pmsm_start` again) and empties the
-/// fault recorder (read it first); does nothing in other states.
+/// fault recorder (read it first); does nothing in other states. A trip of the interrupt
+/// side reaches the task at its next `pmsm_task`: clear after it.
 ///
 /// # Safety
-/// As `pmsm_start`.
+/// As `pmsm_start` (a task-side function).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_clear_fault(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| {
-        if matches!(d.core.drive.state(), DriveState::Fault(_)) {
-            d.recorder.rearm();
+    let (task, _) = match unsafe { task_side(drive) } {
+        Ok(t) => t,
+        Err(e) => return e,
+    };
+    if matches!(task.state(), DriveState::Fault(_)) {
+        // SAFETY: forwarded contract (the recorder is not in use during the call).
+        if let Ok(i) = unsafe { isr_side(drive) } {
+            i.recorder.rearm();
         }
-        d.core.drive.clear_fault()
-    }))
+    }
+    task.clear_fault();
+    pmsm_status_t::PMSM_OK
 }
 
 /// Reports that a control step did not finish within its period (for example: the PWM
 /// update interrupt found the ADC interrupt still running, or a cycle counter read at the end
 /// of the ISR exceeded the period). Trips `PMSM_FAULT_OVERRUN` (outputs off from the next
-/// step on) unless the drive is idle or already faulted. Integer only, ISR-safe.
+/// step on) unless the drive is idle or already faulted. Integer only; an interrupt-side
+/// function.
 ///
 /// # Safety
-/// As `pmsm_start`.
+/// `drive` as `pmsm_start`; call it from the context of `pmsm_step` (or with it masked).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_report_overrun(drive: *mut pmsm_drive_t) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.core.drive.report_overrun()))
+    status(unsafe { isr_side(drive) }.map(|i| i.isr.report_overrun()))
 }
 
 /// Sets the speed reference: signed electrical speed, Q8.24 per unit of `omega_b`
-/// (`pmsm_get_bases`; `pmsm_scale_speed` converts r/min). Takes effect at the next step.
+/// (`pmsm_get_bases`; `pmsm_scale_speed` converts r/min). Taken at the task's next
+/// `pmsm_task`.
 ///
 /// # Safety
-/// As `pmsm_start`.
+/// As `pmsm_start` (a task-side function).
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_set_speed_ref(drive: *mut pmsm_drive_t, omega: i32) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    status(unsafe { self::drive(drive) }.map(|d| d.core.drive.set_speed_ref(Pu::from_bits(omega))))
+    status(unsafe { task_side(drive) }.map(|(t, _)| t.set_speed_ref(Pu::from_bits(omega))))
 }
 
-/// One control sample, integer arithmetic only: from the phase currents and the bus voltage
-/// sampled at the PWM centre (`input`, Q8.24 pu) to the duties of the next period (`output`).
-/// Call it once per sample period (`pmsm_config_t.sample_hz`) from the ADC/PWM interrupt. The
-/// drive is not stepped when a pointer is NULL or invalid. Also records the sample in the
-/// drive's fault recorder (`pmsm_fault_record_get`) until a fault freezes it.
+/// The interrupt step, once per control sample, integer arithmetic only: from the phase
+/// currents and the bus voltage sampled at the PWM centre (`input`, Q8.24 pu) to the duties
+/// of the next period (`output`). Call it once per sample period (`pmsm_config_t.sample_hz`)
+/// from the ADC/PWM interrupt. When `output->task_due` is 1, a task period has ended: pend
+/// the task that calls `pmsm_task`, at a lower priority; it must return before the next task
+/// period ends (`PMSM_TASK_PERIOD` samples later), else the drive trips
+/// `PMSM_FAULT_OVERRUN`. The drive is not stepped when a pointer is NULL or invalid. Also
+/// records the sample in the drive's fault recorder (`pmsm_fault_record_get`) until a fault
+/// freezes it.
 ///
 /// # Safety
-/// `drive` as `pmsm_start`; `input` NULL or pointing to a `pmsm_input_t`; `output` NULL or
-/// pointing to a writable `pmsm_output_t`.
+/// `drive` as `pmsm_start`, called from the control interrupt only (it may preempt
+/// `pmsm_task`, not be preempted by it); `input` NULL or pointing to a `pmsm_input_t`;
+/// `output` NULL or pointing to a writable `pmsm_output_t`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_step(
     drive: *mut pmsm_drive_t,
@@ -247,7 +265,7 @@ pub unsafe extern "C" fn pmsm_step(
     output: *mut pmsm_output_t,
 ) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    let d = match unsafe { self::drive(drive) } {
+    let d = match unsafe { isr_side(drive) } {
         Ok(d) => d,
         Err(e) => return e,
     };
@@ -270,10 +288,10 @@ pub unsafe extern "C" fn pmsm_step(
         },
         vdc: Pu::from_bits(i.vdc),
     };
-    let out = d.core.drive.step(&input);
+    let out = d.isr.step(d.handoff, &input);
     // Here, not left to the caller, so that a C firmware always has the record of a fault.
-    d.recorder.record(&d.core.drive, &input);
-    let cmp = out.duties.to_compare(d.core.period);
+    d.recorder.record(d.isr, &input);
+    let cmp = out.duties.to_compare(d.period);
     let value = pmsm_output_t {
         duty: [
             out.duties.a.to_bits(),
@@ -282,8 +300,25 @@ pub unsafe extern "C" fn pmsm_step(
         ],
         compare: cmp,
         pwm_on: u8::from(out.pwm_on),
-        state: convert::state_code(&d.core.drive.state()) as u8,
+        state: convert::state_code(&d.isr.state()) as u8,
+        task_due: u8::from(d.isr.task_due()),
     };
     // SAFETY: non-null and aligned (checked), writable per the contract.
     unsafe { put(output, value) }
+}
+
+/// The task step, once per task period (`PMSM_TASK_PERIOD` samples), at a priority below the
+/// control interrupt, pended when `pmsm_step` returns `task_due`: the state machine, the speed
+/// loop, the d-axis reference, the slower fault checks. Its result acts from the next
+/// `pmsm_step`; it must return before the next task period ends (else `PMSM_FAULT_OVERRUN`).
+/// Integer, but for a few double-precision operations at the end of the standstill dead-time
+/// calibration (once per start); no allocation.
+///
+/// # Safety
+/// `drive` as `pmsm_start`; called from one context (the task's), which `pmsm_step` may
+/// preempt.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_task(drive: *mut pmsm_drive_t) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    status(unsafe { task_side(drive) }.map(|(t, h)| t.step(h)))
 }

@@ -5,25 +5,26 @@
 
 use crate::convert;
 use crate::handle::pmsm_drive_t;
-use crate::handle::{drive, put};
+use crate::handle::{drive, isr_side, put};
 use crate::types::*;
 use core::ffi::{CStr, c_char};
 
 /// The state and the latched fault.
 ///
 /// # Safety
-/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_state_info_t`.
+/// `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+/// an interrupt-side read; `out` NULL or pointing to a writable `pmsm_state_info_t`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_get_state(
     drive: *mut pmsm_drive_t,
     out: *mut pmsm_state_info_t,
 ) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    let d = match unsafe { self::drive(drive) } {
+    let d = match unsafe { isr_side(drive) } {
         Ok(d) => d,
         Err(e) => return e,
     };
-    let s = d.core.drive.state();
+    let s = d.isr.state();
     let (fault, value) = convert::fault_code(&s);
     // SAFETY: forwarded contract.
     unsafe {
@@ -41,18 +42,19 @@ pub unsafe extern "C" fn pmsm_get_state(
 /// The rotor angle and speed estimated at the last step (integer only, ISR-safe).
 ///
 /// # Safety
-/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_estimate_t`.
+/// `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+/// an interrupt-side read; `out` NULL or pointing to a writable `pmsm_estimate_t`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_get_estimate(
     drive: *mut pmsm_drive_t,
     out: *mut pmsm_estimate_t,
 ) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    let d = match unsafe { self::drive(drive) } {
+    let d = match unsafe { isr_side(drive) } {
         Ok(d) => d,
         Err(e) => return e,
     };
-    let e = d.core.drive.telemetry().estimate;
+    let e = d.isr.telemetry().estimate;
     // SAFETY: forwarded contract.
     unsafe {
         put(
@@ -79,7 +81,7 @@ pub unsafe extern "C" fn pmsm_get_bases(
         Ok(d) => d,
         Err(e) => return e,
     };
-    let b = d.core.drive.config().base;
+    let b = d.core.base;
     // SAFETY: forwarded contract.
     unsafe {
         put(
@@ -98,18 +100,19 @@ pub unsafe extern "C" fn pmsm_get_bases(
 /// the commanded voltage, the estimate and the estimator's health figure (integer only).
 ///
 /// # Safety
-/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_telemetry_t`.
+/// `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+/// an interrupt-side read; `out` NULL or pointing to a writable `pmsm_telemetry_t`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_get_telemetry(
     drive: *mut pmsm_drive_t,
     out: *mut pmsm_telemetry_t,
 ) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    let d = match unsafe { self::drive(drive) } {
+    let d = match unsafe { isr_side(drive) } {
         Ok(d) => d,
         Err(e) => return e,
     };
-    let t = d.core.drive.telemetry();
+    let t = d.isr.telemetry();
     let value = pmsm_telemetry_t {
         theta: t.theta.0,
         theta_est: t.estimate.theta.0,
@@ -120,7 +123,7 @@ pub unsafe extern "C" fn pmsm_get_telemetry(
         i_q_ref: t.i_ref.q.to_bits(),
         v_alpha: t.v.alpha.to_bits(),
         v_beta: t.v.beta.to_bits(),
-        health: d.core.drive.health().to_bits(),
+        health: t.health.to_bits(),
         saturated: u32::from(t.saturated),
     };
     // SAFETY: forwarded contract.
@@ -132,24 +135,25 @@ pub unsafe extern "C" fn pmsm_get_telemetry(
 /// `PMSM_FAULT_INITIAL_POSITION` (integer only).
 ///
 /// # Safety
-/// `drive` as `pmsm_start`; `out` NULL or pointing to a writable `pmsm_ipd_t`.
+/// `drive` as `pmsm_start`, read from the context of `pmsm_step` (or with it masked):
+/// an interrupt-side read; `out` NULL or pointing to a writable `pmsm_ipd_t`.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn pmsm_get_ipd(
     drive: *mut pmsm_drive_t,
     out: *mut pmsm_ipd_t,
 ) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    let d = match unsafe { self::drive(drive) } {
+    let d = match unsafe { isr_side(drive) } {
         Ok(d) => d,
         Err(e) => return e,
     };
-    let (fault, fault_value) = convert::ipd_fault(&d.core.drive.state());
+    let (fault, fault_value) = convert::ipd_fault(&d.isr.state());
     let mut value = pmsm_ipd_t {
         fault,
         fault_value,
         ..pmsm_ipd_t::default()
     };
-    if let Some(r) = d.core.drive.ipd_result() {
+    if let Some(r) = d.isr.ipd_result() {
         value.found = 1;
         value.theta = r.theta.0;
         value.theta_mod_pi = r.theta_mod_pi.0;

@@ -64,11 +64,7 @@ pub unsafe extern "C" fn pmsm_scale_current(
     out: *mut pmsm_scale_t,
 ) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    unsafe {
-        scale_out(drive, out, |d| {
-            amps_per_unit / d.core.drive.config().base.current_a
-        })
-    }
+    unsafe { scale_out(drive, out, |d| amps_per_unit / d.core.base.current_a) }
 }
 
 /// The integer conversion of a bus voltage measured in units of `volts_per_unit` V (the
@@ -83,11 +79,7 @@ pub unsafe extern "C" fn pmsm_scale_voltage(
     out: *mut pmsm_scale_t,
 ) -> pmsm_status_t {
     // SAFETY: forwarded contract.
-    unsafe {
-        scale_out(drive, out, |d| {
-            volts_per_unit / d.core.drive.config().base.voltage_v
-        })
-    }
+    unsafe { scale_out(drive, out, |d| volts_per_unit / d.core.base.voltage_v) }
 }
 
 /// The integer conversion of a mechanical speed in units of `rpm_per_unit` r/min (1.0 for
@@ -105,7 +97,7 @@ pub unsafe extern "C" fn pmsm_scale_speed(
     unsafe {
         scale_out(drive, out, |d| {
             rpm_per_unit * core::f64::consts::TAU / 60.0 * d.core.pole_pairs as f64
-                / d.core.drive.config().base.omega_e_rad_s
+                / d.core.base.omega_e_rad_s
         })
     }
 }

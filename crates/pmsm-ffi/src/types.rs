@@ -228,6 +228,11 @@ pub struct pmsm_config_t {
     pub current_limit_a: f64,
     /// Gain of the back-EMF observers, rad/s (optional).
     pub observer_gain_rad_s: f64,
+    /// Control samples between a step's return and the PWM period its duties act over (0, 1
+    /// or 2): 1 for a timer whose compare registers are preloaded and load at the next update
+    /// (an STM32 TIM1 with OCxPE set), 0 when the duties act over the coming period. The drive
+    /// turns its voltage further and gives its estimator the voltage that acted.
+    pub pwm_delay_samples: u32,
 }
 
 /// The measurements of one control sample, Q8.24 per unit (`2^24` = 1.0 pu).
@@ -268,6 +273,8 @@ pub struct pmsm_output_t {
     pub pwm_on: u8,
     /// The state after this step, a `pmsm_state_t`.
     pub state: u8,
+    /// 1 when this step ended a task period: pend the task that calls `pmsm_task`.
+    pub task_due: u8,
 }
 
 /// The state and the latched fault.
@@ -376,13 +383,19 @@ pub struct pmsm_scale_t {
     pub shift: u32,
 }
 
+/// Samples per task period: `pmsm_step` sets `pmsm_output_t.task_due` once per this many
+/// steps, and `pmsm_task` must return within as many sample periods.
+pub const PMSM_TASK_PERIOD: u32 = 8;
+const _: () = assert!(PMSM_TASK_PERIOD == pmsm_core::TASK_PERIOD);
+
 /// Depth of the fault recorder every drive carries, samples (`pmsm_fault_record_get`).
 ///
 /// 64 samples: 4.6 ms at 14 kHz, 6.4 ms at 10 kHz: the trip and the few milliseconds before
 /// it, several current-loop rise times, enough to tell a current spike from a loop gone
 /// unstable or an estimate running away. A sample is 44 bytes, so the recorder takes 2.8 KiB
-/// beside the drive's 2.2 KiB in `PMSM_STORAGE_SIZE`; one electrical period at low speed (a
-/// thousand samples and more) would not fit the RAM of the small parts this library targets.
+/// beside the drive's 3.4 KiB (both rates) in `PMSM_STORAGE_SIZE`; one electrical period at
+/// low speed (a thousand samples and more) would not fit the RAM of the small parts this
+/// library targets.
 pub const PMSM_FAULT_RECORD_DEPTH: usize = 64;
 
 /// One sample of the fault recorder (`pmsm_fault_record_get`): what a `pmsm_step` was given
@@ -417,10 +430,10 @@ pub struct pmsm_fault_sample_t {
 /// Size of static storage that holds a drive and its fault recorder on every supported
 /// target, bytes. The C firmware can declare `static pmsm_storage_t storage;` (`sizeof` =
 /// this, aligned to 8).
-pub const PMSM_STORAGE_SIZE: usize = 6144;
+pub const PMSM_STORAGE_SIZE: usize = 8192;
 
 /// `PMSM_STORAGE_SIZE / 8`: the `uint64_t` words of `pmsm_storage_t`.
-pub const PMSM_STORAGE_WORDS: usize = 768;
+pub const PMSM_STORAGE_WORDS: usize = 1024;
 
 /// Statically allocatable storage for one drive: `static pmsm_storage_t storage;` then
 /// `pmsm_drive_init(&storage, sizeof storage, &config, &drive)`.

@@ -143,13 +143,29 @@ fn null_misaligned_and_uninitialised_arguments_return_errors() {
             (out.pwm_on, out.state),
             (0, pmsm_state_t::PMSM_STATE_IDLE as u8)
         );
-        // Running with a zero bus: a latched undervoltage fault, then cleared.
+        // Running with a zero bus: a latched undervoltage fault (at the first sample the
+        // interrupt side runs the start), then cleared once the task has taken it.
         assert_eq!(pmsm_start(d), PMSM_OK);
-        assert_eq!(pmsm_step(d, &input, &mut out), PMSM_OK);
+        let follow = 2 * PMSM_TASK_PERIOD as usize;
+        let step = |out: &mut pmsm_output_t| {
+            assert_eq!(pmsm_step(d, &input, out), PMSM_OK);
+            if out.task_due != 0 {
+                assert_eq!(pmsm_task(d), PMSM_OK);
+            }
+        };
+        for _ in 0..follow {
+            step(&mut out);
+        }
         assert_eq!(pmsm_get_state(d, &mut st), PMSM_OK);
         assert_eq!(st.state, pmsm_state_t::PMSM_STATE_FAULT as u32);
         assert_eq!(st.fault, pmsm_fault_t::PMSM_FAULT_BUS_UNDERVOLTAGE as u32);
+        for _ in 0..follow {
+            step(&mut out);
+        }
         assert_eq!(pmsm_clear_fault(d), PMSM_OK);
+        for _ in 0..follow {
+            step(&mut out);
+        }
         assert_eq!(pmsm_get_state(d, &mut st), PMSM_OK);
         assert_eq!((st.state, st.fault), (0, 0));
     }

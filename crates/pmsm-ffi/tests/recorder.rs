@@ -48,7 +48,8 @@ fn overcurrent() -> pmsm_input_t {
     }
 }
 
-/// One step; the output's state code and the telemetry after it.
+/// One step (and the task when it is due); the output's state code and the telemetry after
+/// it.
 fn step(d: *mut pmsm_drive_t, x: &pmsm_input_t) -> (u8, pmsm_telemetry_t) {
     let mut out = pmsm_output_t::default();
     let mut t = pmsm_telemetry_t::default();
@@ -56,9 +57,15 @@ fn step(d: *mut pmsm_drive_t, x: &pmsm_input_t) -> (u8, pmsm_telemetry_t) {
     unsafe {
         assert_eq!(pmsm_step(d, x, &mut out), pmsm_status_t::PMSM_OK);
         assert_eq!(pmsm_get_telemetry(d, &mut t), pmsm_status_t::PMSM_OK);
+        if out.task_due != 0 {
+            assert_eq!(pmsm_task(d), pmsm_status_t::PMSM_OK);
+        }
     }
     (out.state, t)
 }
+
+/// Samples from a task-side call to the interrupt side's acting on it, at most.
+const FOLLOW: i32 = 2 * PMSM_TASK_PERIOD as i32;
 
 fn len(d: *mut pmsm_drive_t) -> u32 {
     // SAFETY: valid handle (or NULL, on purpose).
@@ -170,7 +177,11 @@ fn holds_the_last_samples_before_an_overcurrent_oldest_first_and_freezes() {
     assert_eq!(unsafe { pmsm_stop(d) }, pmsm_status_t::PMSM_OK);
     step(d, &input(7));
     assert_eq!(all(d), held);
-    // A new start empties it and records again.
+    // A new start (once the stop has reached the interrupt side) empties it and records
+    // again.
+    for _ in 0..FOLLOW {
+        step(d, &input(7));
+    }
     // SAFETY: valid handle.
     assert_eq!(unsafe { pmsm_start(d) }, pmsm_status_t::PMSM_OK);
     assert_eq!(len(d), 0);
@@ -184,26 +195,38 @@ fn clear_fault_empties_it_and_start_does_not_while_running() {
     let d = init(&mut s);
     // SAFETY: valid handle.
     unsafe { pmsm_start(d) };
-    for k in 0..10 {
+    for k in 0..FOLLOW + 10 {
         step(d, &input(k));
     }
     // A start while running does nothing, to the drive or to its record.
     // SAFETY: valid handle.
     unsafe { pmsm_start(d) };
-    assert_eq!(len(d), 10);
+    assert_eq!(len(d), FOLLOW as u32 + 10);
     step(d, &overcurrent());
-    assert_eq!(len(d), 11);
+    assert_eq!(len(d), FOLLOW as u32 + 11);
+    // The task takes the trip at the end of its period; cleared then, the record empties.
+    for k in 0..FOLLOW {
+        step(d, &input(k));
+    }
+    assert_eq!(len(d), FOLLOW as u32 + 11);
     // SAFETY: valid handle.
     assert_eq!(unsafe { pmsm_clear_fault(d) }, pmsm_status_t::PMSM_OK);
     assert_eq!(len(d), 0);
-    // Idle samples are recorded too (the record shows what preceded a start).
+    // The samples until the outputs are idle again are recorded, the old trip not taken for
+    // a new fault; idle samples are recorded too (the record shows what preceded a start).
+    let mut fed = Vec::new();
+    for _ in 0..FOLLOW {
+        let (state, t) = step(d, &input(5));
+        fed.push(expected(&input(5), state, &t));
+    }
     let (state, t) = step(d, &input(5));
+    fed.push(expected(&input(5), state, &t));
     assert_eq!(state, pmsm_state_t::PMSM_STATE_IDLE as u8);
-    assert_eq!(all(d), vec![expected(&input(5), state, &t)]);
+    assert_eq!(all(d), fed);
     // A clear outside a fault leaves the record alone.
     // SAFETY: valid handle.
     unsafe { pmsm_clear_fault(d) };
-    assert_eq!(len(d), 1);
+    assert_eq!(len(d), FOLLOW as u32 + 1);
 }
 
 #[test]

@@ -268,10 +268,13 @@ impl SpeedKnob {
             return KnobCommand::Stop;
         }
         // `new` keeps full_scale > stop_below; the `max(1)` shows the compiler that the
-        // division cannot fail (no panic path in a firmware image).
-        let span = i64::from(self.full_scale.saturating_sub(self.stop_below)).max(1);
-        let x = (code.min(self.full_scale).saturating_sub(self.stop_below)) as i64;
-        KnobCommand::Run(Pu::from_bits((self.max.to_bits() as i64 * x / span) as i32))
+        // division cannot fail (no panic path in a firmware image). ⌊max x/span⌋ in 32 bits
+        // (x ≤ span < 2¹⁶: the remainder's product fits), without a 64-bit division.
+        let span = u32::from(self.full_scale.saturating_sub(self.stop_below)).max(1);
+        let x = u32::from(code.min(self.full_scale).saturating_sub(self.stop_below));
+        let max = self.max.to_bits().max(0) as u32;
+        let (q, r) = (max / span, max % span);
+        KnobCommand::Run(Pu::from_bits((q * x + r * x / span) as i32))
     }
 }
 

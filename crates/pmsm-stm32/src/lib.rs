@@ -47,8 +47,8 @@ mod tests {
     use pmsm_core::Abc;
     use pmsm_core::Pu;
     use pmsm_core::{
-        Drive, DriveConfig, DriveInput, DriveOptions, DriveState, Duties, InverterParams,
-        MotorParams,
+        Drive, DriveConfig, DriveInput, DriveIsr, DriveOptions, DriveState, DriveTask, Duties,
+        Handoff, InverterParams, MotorParams, TASK_PERIOD,
     };
 
     #[derive(Default)]
@@ -84,6 +84,33 @@ mod tests {
         }
     }
 
+    /// The two sides of a drive and their handoff, as a firmware holds them.
+    struct Parts {
+        isr: DriveIsr,
+        task: DriveTask,
+        handoff: Handoff,
+    }
+
+    impl Parts {
+        /// One control interrupt, and the task when it is due.
+        fn step(&mut self, pwm: &mut MockPwm, s: &mut Fixed) -> pmsm_core::DriveOutput {
+            let out = control_step(&mut self.isr, &self.handoff, pwm, s);
+            if self.isr.task_due() {
+                self.task.step(&self.handoff);
+            }
+            out
+        }
+    }
+
+    fn parts() -> Parts {
+        let (isr, task) = drive().into_parts();
+        Parts {
+            isr,
+            task,
+            handoff: Handoff::new(),
+        }
+    }
+
     fn drive() -> Drive {
         let mut m = MotorParams::new(4, 0.3, 0.6e-3, 1.0e-3, 0.01, 2e-5, 1e-5);
         m.rated_current_a = Some(5.0);
@@ -96,33 +123,51 @@ mod tests {
         Drive::new(DriveConfig::from_params(&m, &inv, 20e3, DriveOptions::default()).unwrap())
     }
 
+    /// Samples from a task-side call to the interrupt side's acting on it, at most.
+    const FOLLOW: u32 = 2 * TASK_PERIOD;
+
     #[test]
     fn idle_drive_keeps_outputs_off_and_running_drive_switches() {
-        let mut d = drive();
+        let mut d = parts();
         let mut pwm = MockPwm::default();
         let vdc = Pu::from_num(1.732);
         let mut s = Fixed(DriveInput {
             i_abc: Abc::default(),
             vdc,
         });
-        let out = control_step(&mut d, &mut pwm, &mut s);
+        let out = d.step(&mut pwm, &mut s);
         assert!(!out.pwm_on);
         assert!(!pwm.on);
         assert_eq!(pwm.enables, 0);
-        d.start();
-        assert_ne!(d.state(), DriveState::Idle);
-        let out = control_step(&mut d, &mut pwm, &mut s);
-        assert_eq!(out.pwm_on, pwm.on);
-        d.stop();
-        control_step(&mut d, &mut pwm, &mut s);
+        d.task.start();
+        assert_ne!(d.task.state(), DriveState::Idle);
+        // Started: the outputs switch (the detection's pulses, off between them).
+        let mut switched = 0;
+        for _ in 0..FOLLOW {
+            let out = d.step(&mut pwm, &mut s);
+            assert_eq!(out.pwm_on, pwm.on);
+            switched += u32::from(pwm.on);
+        }
+        assert!(switched > 0 && d.isr.state() != DriveState::Idle);
+        d.task.stop();
+        for _ in 0..FOLLOW {
+            d.step(&mut pwm, &mut s);
+        }
         assert!(!pwm.on);
     }
 
     #[test]
     fn overcurrent_turns_outputs_off() {
-        let mut d = drive();
+        let mut d = parts();
         let mut pwm = MockPwm::default();
-        d.start();
+        let mut idle = Fixed(DriveInput {
+            i_abc: Abc::default(),
+            vdc: Pu::from_num(1.732),
+        });
+        d.task.start();
+        for _ in 0..FOLLOW {
+            d.step(&mut pwm, &mut idle);
+        }
         let big = Pu::from_num(10);
         let mut s = Fixed(DriveInput {
             i_abc: Abc {
@@ -133,9 +178,9 @@ mod tests {
             vdc: Pu::from_num(1.732),
         });
         pwm.on = true;
-        let out = control_step(&mut d, &mut pwm, &mut s);
+        let out = d.step(&mut pwm, &mut s);
         assert!(!out.pwm_on);
         assert!(!pwm.on);
-        assert!(matches!(d.state(), DriveState::Fault(_)));
+        assert!(matches!(d.isr.state(), DriveState::Fault(_)));
     }
 }

@@ -6,21 +6,26 @@
 //!
 //! | task | priority | owns | does |
 //! |---|---|---|---|
-//! | `control` (ADC1_2, every PWM period) | 3 | the drive, TIM1, the injected ADCs | offset calibration, the drive step or the identification's step, the fault recorder |
-//! | `ui` (SPI1 vector, pended by `control` every 10 ms) | 2 | the knob, the button | speed reference, start/stop/clear fault, commissioning (long press) |
+//! | `control` (ADC1_2, every PWM period) | 3 | the drive's interrupt side, TIM1, the injected ADCs | offset calibration, the interrupt step or the identification's step, the fault recorder; pends `motion` when a task period ends |
+//! | `motion` (SPI1 vector, pended by `control` every task period) | 2 | the drive's task side, the knob, the button | the task step (state machine, speed loop, slow checks, learners); every 10 ms the knob and the button: speed reference, start/stop/clear fault, commissioning (long press) |
 //! | `idle` | 0 | the logger | defmt logs: state, speed, cycles; the recorder after a fault; the identification's `f32` fits (`Identify::poll`), the identified motor and the drive rebuilt from it |
 //!
-//! No `static mut` and no shared flags: the tasks talk through two `heapless::spsc::Queue`s,
-//! commands `ui` → `control` and reports `control` → `idle`, and share the fault recorder,
-//! which `control` writes and the logger reads sample by sample once it is frozen, the
-//! identification (stepped by `control`, polled by `idle`) and the drive configuration that
-//! `idle` builds from an identified motor. All are RTIC resources: `control`'s locks cost
-//! nothing (top priority), the others' mask it for one enqueue, dequeue or copy, except
-//! `Identify::poll`, which masks it for its fits (up to about 20 000 instructions, three times
-//! per identification, while the identification holds its voltage or has turned the outputs
-//! off: the samples it delays change nothing). (The queues are not split into producer and consumer
-//! halves: the halves compute the ring position modulo a length they only know at run time,
-//! a panic path that CI's check of the image rejects; a whole `Queue` knows its length.)
+//! The two sides of the drive meet in `HANDOFF`, a `static` of lock-free mailboxes (atomic
+//! words: the task's command, the interrupt's window of each task period); `motion` must
+//! finish its step within the task period (`pmsm_core::TASK_PERIOD` PWM periods), else the
+//! drive trips `overrun`. No `static mut`: the other tasks talk through RTIC resources, the
+//! reports `control` → `idle` a `heapless::spsc::Queue`, the fault recorder (which `control`
+//! writes and the logger reads sample by sample once it is frozen), the identification
+//! (stepped by `control`, polled by `idle`), the drive configuration that `idle` builds from
+//! an identified motor, and a few flags between `control` and `motion` (the break input's
+//! latch, commissioning's request and state, the speed reference for the reports). Every lock
+//! that `control` takes costs it nothing (top priority); the others mask it for one enqueue,
+//! dequeue or copy, except `Identify::poll`, which masks it for its fits (up to about 20 000
+//! instructions, three times per identification, while the identification holds its voltage
+//! or has turned the outputs off: the samples it delays change nothing). (The queue is not
+//! split into producer and consumer halves: the halves compute the ring position modulo a
+//! length they only know at run time, a panic path that CI's check of the image rejects; a
+//! whole `Queue` knows its length.)
 //!
 //! `cargo run --release` (in this folder) flashes and runs it through probe-rs.
 #![no_std]
@@ -56,7 +61,10 @@ mod app {
     use cortex_m::peripheral::DWT;
     use heapless::Vec;
     use heapless::spsc::Queue;
-    use pmsm_core::{Drive, DriveConfig, DriveInput, DriveState, FaultRecorder, Pu};
+    use pmsm_core::{
+        DriveConfig, DriveInput, DriveIsr, DriveState, DriveTask, FaultRecorder, Handoff, Pu,
+        TASK_PERIOD,
+    };
     use pmsm_core::{
         Identified, Identify, IdentifyConfig, IdentifyDesign, IdentifyError, IdentifyOutput, Stage,
         clarke,
@@ -68,6 +76,10 @@ mod app {
     use rtic::Mutex;
     use stm32g4::stm32g431 as pac;
 
+    /// Where the drive's two sides meet: lock-free mailboxes of atomic words, the interrupt's
+    /// window of each task period and the task's command.
+    static HANDOFF: Handoff = Handoff::new();
+
     /// Samples kept before a fault: 3.2 ms at 20 kHz (44 bytes each).
     const RECORD: usize = 64;
     /// The commissioning mode is built in (feature `commissioning`: with it the image
@@ -77,12 +89,12 @@ mod app {
     /// Capacity of the identification's and the rebuilt drive's slots: 1 with the mode,
     /// 0 (no RAM) without.
     const SLOTS: usize = COMMISSIONING as usize;
-    /// Control samples between two runs of `ui` (10 ms).
-    const UI_PERIOD: u32 = motor::PWM_HZ / 100;
+    /// Task periods between two polls of the knob and the button (10 ms).
+    const UI_PERIOD: u32 = motor::PWM_HZ / 100 / TASK_PERIOD;
     /// Control samples between two periodic reports (100 ms).
     const REPORT_PERIOD: u32 = motor::PWM_HZ / 10;
 
-    /// `ui` → `control`.
+    /// What the knob and the button ask for.
     #[derive(Clone, Copy)]
     pub enum Command {
         /// Start from `Idle` (ignored elsewhere).
@@ -137,24 +149,37 @@ mod app {
         stage: Option<Stage>,
     }
 
-    /// A drive built by `idle` from an identified motor, for `control` to take in `Idle`.
+    /// A drive built by `idle` from an identified motor: `motion` takes it in `Idle` and
+    /// hands it on to `control`.
     pub struct Rebuilt {
         config: DriveConfig,
         /// The ADC scaling to its bases (offsets are kept).
         scaling: Scaling,
     }
 
+    /// `motion` ↔ `control`, besides the handoff.
+    #[derive(Clone, Copy, Default)]
+    pub struct Flags {
+        /// A hardware break turned the outputs off: no restart before a stop (`control` sets
+        /// it, `motion` clears it on a stop).
+        latched: bool,
+        /// `motion` asks for commissioning (in `Idle`), or to abort it.
+        commission: bool,
+        abort: bool,
+        /// Commissioning runs (`control`'s).
+        commissioning: bool,
+        /// The speed reference, for the reports.
+        speed_ref: Pu,
+    }
+
     /// What the control interrupt owns.
     pub struct Control {
-        drive: Drive,
+        isr: DriveIsr,
         pwm: Tim1Pwm,
         adc: InjectedAdc,
         calibration: Option<OffsetCalibration>,
         /// Cycles per PWM period: a step longer than this overran.
         budget: u32,
-        /// A hardware break turned the outputs off: no restart before a stop.
-        latched: bool,
-        speed_ref: Pu,
         max_cycles: u32,
         tick: u32,
         last_state: DriveState,
@@ -169,8 +194,12 @@ mod app {
         last_stage: Option<Stage>,
     }
 
-    /// The knob (ADC1 regular channel) and the button.
-    pub struct Ui {
+    /// What the motion task owns: the drive's task side, the knob (ADC1 regular channel) and
+    /// the button.
+    pub struct Motion {
+        task: DriveTask,
+        /// Task periods since the last poll of the knob and the button.
+        polls: u32,
         adc1: pac::ADC1,
         gpioc: pac::GPIOC,
         knob: SpeedKnob,
@@ -178,6 +207,8 @@ mod app {
         /// Consecutive polls with the button down (debounce: 3 polls, 30 ms; a long press:
         /// [`board::LONG_PRESS_POLLS`]).
         pressed_polls: u8,
+        /// The break latch last seen (a new one stops the task).
+        latched: bool,
     }
 
     /// The logger's state.
@@ -192,20 +223,21 @@ mod app {
     #[shared]
     struct Shared {
         recorder: FaultRecorder<RECORD>,
-        /// `ui` → `control`.
-        commands: Queue<Command, 8>,
         /// `control` → `idle`.
         reports: Queue<Report, 16>,
+        flags: Flags,
         /// The commissioning run: `control` steps it, `idle` polls it (at most one).
         identify: Vec<Identify, SLOTS>,
-        /// `idle` → `control`: the drive of the identified motor (at most one).
+        /// `idle` → `motion`, then `motion` → `control`: the drive of the identified motor
+        /// (at most one each).
         rebuilt: Vec<Rebuilt, SLOTS>,
+        rebuilt_isr: Vec<Rebuilt, SLOTS>,
     }
 
     #[local]
     struct Local {
         control: Control,
-        ui: Ui,
+        motion: Motion,
         logger: Logger,
     }
 
@@ -272,19 +304,17 @@ mod app {
         board::button_pin(&dp.GPIOC);
         let _ = adc.read_regular();
 
-        // SAFETY: `ui` touches only ADC1's regular conversion (start bit, EOC flag, data
+        // SAFETY: `motion` touches only ADC1's regular conversion (start bit, EOC flag, data
         // register) and `control` only its injected flags and data (InjectedAdc::read_raw).
         let adc1 = unsafe { pac::ADC1::steal() };
         let max_speed = base.speed_pu(0.8 * base.omega_e_rad_s);
         let control = Control {
-            drive: Drive::new(config),
+            isr: DriveIsr::new(&config),
             pwm,
             adc,
             // 1024 samples (51 ms) with the outputs off; offsets within 1.65 V ± 15 %.
             calibration: Some(OffsetCalibration::new(1024, (1741, 2355))),
             budget: hw::SYSCLK_HZ / motor::PWM_HZ,
-            latched: false,
-            speed_ref: Pu::ZERO,
             max_cycles: 0,
             tick: 0,
             last_state: DriveState::Idle,
@@ -293,12 +323,15 @@ mod app {
             commissioning: false,
             last_stage: None,
         };
-        let ui = Ui {
+        let motion = Motion {
+            task: DriveTask::new(&config),
+            polls: 0,
             adc1,
             gpioc: dp.GPIOC,
             knob: SpeedKnob::new(150, 300, 4000, max_speed),
             knob_running: false,
             pressed_polls: 0,
+            latched: false,
         };
         let logger = Logger {
             rpm_per_pu: (base.omega_e_rad_s / m.p() * 60.0 / core::f64::consts::TAU) as f32,
@@ -309,14 +342,15 @@ mod app {
         (
             Shared {
                 recorder: FaultRecorder::new(),
-                commands: Queue::new(),
                 reports: Queue::new(),
+                flags: Flags::default(),
                 identify: Vec::new(),
                 rebuilt: Vec::new(),
+                rebuilt_isr: Vec::new(),
             },
             Local {
                 control,
-                ui,
+                motion,
                 logger,
             },
         )
@@ -354,20 +388,18 @@ mod app {
     }
 
     /// The control interrupt: ADC1's end of injected sequence, once per PWM period.
+
+    /// The control interrupt: ADC1's end of injected sequence, once per PWM period.
     #[task(
         binds = ADC1_2,
         priority = 3,
         local = [control],
-        shared = [recorder, commands, reports, identify, rebuilt]
+        shared = [recorder, reports, flags, identify, rebuilt_isr]
     )]
     fn control(mut cx: control::Context) {
         let start = DWT::cycle_count();
         let c = cx.local.control;
         c.tick = c.tick.wrapping_add(1);
-        if c.tick.is_multiple_of(UI_PERIOD) {
-            // SPI1 is unused on the board: its vector runs `ui`, pended from here.
-            rtic::pend(pac::Interrupt::SPI1);
-        }
         if let Some(cal) = c.calibration.as_mut() {
             let raw = c.adc.read_raw();
             let event = match cal.add(&raw) {
@@ -381,93 +413,30 @@ mod app {
                 Some(Err(_)) if c.tick.is_multiple_of(motor::PWM_HZ) => Event::CalibrationFailed,
                 Some(Err(_)) => return,
             };
-            cx.shared.reports.lock(|q| report(q, c, event));
+            cx.shared.reports.lock(|q| report(q, c, Pu::ZERO, event));
             return;
         }
         let mut event = Event::None;
-        while let Some(cmd) = cx.shared.commands.lock(|q| q.dequeue()) {
-            if COMMISSIONING && c.commissioning {
-                // Anything that would stop the drive stops the identification.
-                match cmd {
-                    Command::Speed(w) => {
-                        c.speed_ref = w;
-                        c.drive.set_speed_ref(w);
-                    }
-                    Command::Stop | Command::Button => {
-                        end_commissioning(c);
-                        cx.shared.identify.lock(|id| id.clear());
-                        event = Event::CommissionAborted;
-                    }
-                    Command::Start | Command::Commission => {}
-                }
-                continue;
-            }
-            match cmd {
-                // Set on change only: the setter computes the closed loop's reference.
-                Command::Speed(w) => {
-                    c.speed_ref = w;
-                    c.drive.set_speed_ref(w);
-                }
-                Command::Commission if !COMMISSIONING => {}
-                Command::Commission => {
-                    event = match c.commission {
-                        Some((config, scaling))
-                            if COMMISSIONING
-                                && c.drive.state() == DriveState::Idle
-                                && !c.latched =>
-                        {
-                            c.adc.scaling = Scaling {
-                                offsets: c.adc.scaling.offsets,
-                                ..scaling
-                            };
-                            cx.shared.identify.lock(|id| {
-                                id.clear();
-                                // Capacity 1 here: always fits.
-                                let _ = id.push(Identify::new(config));
-                            });
-                            c.commissioning = true;
-                            c.last_stage = None;
-                            Event::CommissionStarted
-                        }
-                        _ => Event::CommissionRefused,
-                    };
-                }
-                // `start` acts only from Idle: a fault needs the button first.
-                Command::Start if !c.latched => c.drive.start(),
-                Command::Start => {}
-                Command::Stop => {
-                    c.latched = false;
-                    c.drive.stop();
-                }
-                Command::Button => match c.drive.state() {
-                    DriveState::Fault(_) => {
-                        c.latched = false;
-                        c.drive.clear_fault();
-                        cx.shared.recorder.lock(|r| r.rearm());
-                    }
-                    DriveState::Idle if !c.latched => c.drive.start(),
-                    _ => c.drive.stop(),
-                },
-            }
-        }
+        let mut flags = cx.shared.flags.lock(|f| *f);
         if c.pwm.take_break() {
-            c.latched = true;
-            c.drive.stop();
+            flags.latched = true;
             if COMMISSIONING && c.commissioning {
                 end_commissioning(c);
                 cx.shared.identify.lock(|id| id.clear());
             }
             event = Event::Break;
         }
-        // The drive of an identified motor, taken in Idle, before this sample is scaled (its
+        if COMMISSIONING {
+            event = commission_requests(c, &mut flags, &mut cx.shared.identify, event);
+        }
+        // The drive of an identified motor, taken in `Idle`, before this sample is scaled (its
         // bases may differ).
         if COMMISSIONING
             && !c.commissioning
-            && c.drive.state() == DriveState::Idle
-            && let Some(r) = cx.shared.rebuilt.lock(|r| r.pop())
+            && matches!(c.isr.state(), DriveState::Idle)
+            && let Some(r) = cx.shared.rebuilt_isr.lock(|r| r.pop())
         {
-            c.drive = Drive::new(r.config);
-            c.drive.set_speed_ref(c.speed_ref);
+            c.isr = DriveIsr::new(&r.config);
             c.drive_scaling = Scaling {
                 offsets: c.adc.scaling.offsets,
                 ..r.scaling
@@ -475,6 +444,12 @@ mod app {
             c.adc.scaling = c.drive_scaling;
             event = Event::DriveRebuilt;
         }
+        cx.shared.flags.lock(|f| {
+            f.latched = flags.latched;
+            f.commission = flags.commission;
+            f.abort = flags.abort;
+            f.commissioning = c.commissioning;
+        });
         // One sample for either path (one inlined copy of the scaling).
         let input = c.adc.sample();
         if COMMISSIONING && c.commissioning {
@@ -489,19 +464,71 @@ mod app {
             );
             return;
         }
-        let out = c.drive.step(&input);
+        let out = c.isr.step(&HANDOFF, &input);
         apply(&mut c.pwm, &out);
-        cx.shared.recorder.lock(|r| r.record(&c.drive, &input));
+        if c.isr.task_due() {
+            // SPI1 is unused on the board: its vector runs `motion`, pended from here.
+            rtic::pend(pac::Interrupt::SPI1);
+        }
+        cx.shared.recorder.lock(|r| r.record(&c.isr, &input));
         let cycles = DWT::cycle_count().wrapping_sub(start);
         c.max_cycles = c.max_cycles.max(cycles);
         if cycles > c.budget {
-            c.drive.report_overrun();
+            c.isr.report_overrun();
             c.pwm.disable();
         }
-        let state = c.drive.state();
-        if state != c.last_state || event != Event::None || c.tick.is_multiple_of(REPORT_PERIOD) {
+        let state = c.isr.state();
+        // A new state or fault (their codes: no comparison of the faults' values).
+        let changed =
+            (state.code(), state.fault_code()) != (c.last_state.code(), c.last_state.fault_code());
+        if changed || event != Event::None || c.tick.is_multiple_of(REPORT_PERIOD) {
             c.last_state = state;
-            cx.shared.reports.lock(|q| report(q, c, event));
+            cx.shared
+                .reports
+                .lock(|q| report(q, c, flags.speed_ref, event));
+        }
+    }
+
+    /// `motion`'s requests for commissioning: start it (in `Idle`, with the offsets measured
+    /// and no break latched) or abort it; the event to report.
+    fn commission_requests(
+        c: &mut Control,
+        flags: &mut Flags,
+        identify: &mut impl Mutex<T = Vec<Identify, SLOTS>>,
+        event: Event,
+    ) -> Event {
+        if flags.abort {
+            flags.abort = false;
+            if c.commissioning {
+                end_commissioning(c);
+                identify.lock(|id| id.clear());
+                return Event::CommissionAborted;
+            }
+        }
+        if !flags.commission {
+            return event;
+        }
+        flags.commission = false;
+        match c.commission {
+            Some((config, scaling))
+                if matches!(c.isr.state(), DriveState::Idle)
+                    && !flags.latched
+                    && !c.commissioning =>
+            {
+                c.adc.scaling = Scaling {
+                    offsets: c.adc.scaling.offsets,
+                    ..scaling
+                };
+                identify.lock(|id| {
+                    id.clear();
+                    // Capacity 1 here: always fits.
+                    let _ = id.push(Identify::new(config));
+                });
+                c.commissioning = true;
+                c.last_stage = None;
+                Event::CommissionStarted
+            }
+            _ => Event::CommissionRefused,
         }
     }
 
@@ -544,7 +571,7 @@ mod app {
         }
         if event != Event::None || stage != c.last_stage {
             c.last_stage = stage;
-            reports.lock(|q| report(q, c, event));
+            reports.lock(|q| report(q, c, Pu::ZERO, event));
         }
     }
 
@@ -571,59 +598,147 @@ mod app {
     }
 
     /// Queues a report for the logger (dropped if the logger is behind: the next one tells).
-    fn report(q: &mut Queue<Report, 16>, c: &Control, event: Event) {
+    fn report(q: &mut Queue<Report, 16>, c: &Control, speed_ref: Pu, event: Event) {
         let _ = q.enqueue(Report {
-            state: c.drive.state(),
-            speed_est: c.drive.telemetry().estimate.omega,
-            speed_ref: c.speed_ref,
+            state: c.isr.state(),
+            speed_est: c.isr.telemetry().estimate.omega,
+            speed_ref,
             max_cycles: c.max_cycles,
             event,
             stage: if c.commissioning { c.last_stage } else { None },
         });
     }
 
-    /// Knob and button, every 10 ms (a hardware task on the unused SPI1 vector, pended by
-    /// `control`: no executor, no timer).
-    #[task(binds = SPI1, priority = 2, local = [ui], shared = [commands])]
-    fn ui(mut cx: ui::Context) {
-        let u = cx.local.ui;
-        let mut send = |cmd: Command| {
-            // Full only if `control` stopped taking commands: nothing better to do.
-            let _ = cx.shared.commands.lock(|q| q.enqueue(cmd));
-        };
-        let pot = read_pot(&u.adc1);
-        let cmd = u.knob.update(pot);
+    /// The drive's task side, once per task period (a hardware task on the unused SPI1
+    /// vector, pended by `control`: no executor, no timer); every 10 ms the knob and the
+    /// button.
+    #[task(binds = SPI1, priority = 2, local = [motion], shared = [flags, recorder, rebuilt, rebuilt_isr])]
+    fn motion(mut cx: motion::Context) {
+        let m = cx.local.motion;
+        let flags = cx.shared.flags.lock(|f| *f);
+        // A new break latch stops the task side too.
+        if flags.latched && !m.latched {
+            m.task.stop();
+        }
+        m.latched = flags.latched;
+        m.task.step(&HANDOFF);
+        m.polls += 1;
+        if m.polls < UI_PERIOD {
+            return;
+        }
+        m.polls = 0;
+        // The drive of an identified motor, taken in `Idle`; `control` takes it next.
+        if COMMISSIONING
+            && !flags.commissioning
+            && matches!(m.task.state(), DriveState::Idle)
+            && let Some(r) = cx.shared.rebuilt.lock(|r| r.pop())
+        {
+            let speed_ref = flags.speed_ref;
+            m.task = DriveTask::new(&r.config);
+            m.task.set_speed_ref(speed_ref);
+            cx.shared.rebuilt_isr.lock(|slot| {
+                slot.clear();
+                let _ = slot.push(r);
+            });
+        }
+        for cmd in poll_ui(m).into_iter().flatten() {
+            run_command(
+                m,
+                cmd,
+                &flags,
+                &mut cx.shared.flags,
+                &mut cx.shared.recorder,
+            );
+        }
+    }
+
+    /// One command of the knob or the button to the task side (or to commissioning).
+    fn run_command(
+        m: &mut Motion,
+        cmd: Command,
+        seen: &Flags,
+        flags: &mut impl Mutex<T = Flags>,
+        recorder: &mut impl Mutex<T = FaultRecorder<RECORD>>,
+    ) {
+        if COMMISSIONING && seen.commissioning {
+            // Anything that would stop the drive stops the identification.
+            match cmd {
+                Command::Speed(w) => {
+                    m.task.set_speed_ref(w);
+                    flags.lock(|f| f.speed_ref = w);
+                }
+                Command::Stop | Command::Button => flags.lock(|f| f.abort = true),
+                Command::Start | Command::Commission => {}
+            }
+            return;
+        }
+        match cmd {
+            // Set on change only: the setter computes the closed loop's reference.
+            Command::Speed(w) => {
+                m.task.set_speed_ref(w);
+                flags.lock(|f| f.speed_ref = w);
+            }
+            Command::Commission if !COMMISSIONING => {}
+            Command::Commission if matches!(m.task.state(), DriveState::Idle) => {
+                flags.lock(|f| f.commission = true);
+            }
+            Command::Commission => {}
+            // `start` acts only from Idle: a fault needs the button first.
+            Command::Start if !seen.latched => m.task.start(),
+            Command::Start => {}
+            Command::Stop => {
+                flags.lock(|f| f.latched = false);
+                m.task.stop();
+            }
+            Command::Button => match m.task.state() {
+                DriveState::Fault(_) => {
+                    flags.lock(|f| f.latched = false);
+                    m.task.clear_fault();
+                    recorder.lock(|r| r.rearm());
+                }
+                DriveState::Idle if !seen.latched => m.task.start(),
+                _ => m.task.stop(),
+            },
+        }
+    }
+
+    /// The knob and the button: their commands (at most one of each kind), in order.
+    fn poll_ui(m: &mut Motion) -> [Option<Command>; 3] {
+        let mut out = [None; 3];
+        let pot = read_pot(&m.adc1);
+        let cmd = m.knob.update(pot);
         let running = matches!(cmd, KnobCommand::Run(_));
         // The knob starts and stops on its edges only, so the button can stop a drive that
         // the knob keeps at speed.
         match cmd {
             KnobCommand::Run(w) => {
-                send(Command::Speed(w));
-                if !u.knob_running {
-                    send(Command::Start);
+                out[0] = Some(Command::Speed(w));
+                if !m.knob_running {
+                    out[1] = Some(Command::Start);
                 }
             }
-            KnobCommand::Stop if u.knob_running => send(Command::Stop),
+            KnobCommand::Stop if m.knob_running => out[1] = Some(Command::Stop),
             KnobCommand::Stop => {}
         }
-        u.knob_running = running;
+        m.knob_running = running;
         // With the mode a short press acts when released (held 30 ms to 2 s), a long one
         // once held 2 s.
         // Without the mode the button acts once held 30 ms.
-        if board::button_down(&u.gpioc) {
-            u.pressed_polls = u.pressed_polls.saturating_add(1);
-            if !COMMISSIONING && u.pressed_polls == 3 {
-                send(Command::Button);
+        if board::button_down(&m.gpioc) {
+            m.pressed_polls = m.pressed_polls.saturating_add(1);
+            if !COMMISSIONING && m.pressed_polls == 3 {
+                out[2] = Some(Command::Button);
             }
-            if COMMISSIONING && u.pressed_polls == board::LONG_PRESS_POLLS {
-                send(Command::Commission);
+            if COMMISSIONING && m.pressed_polls == board::LONG_PRESS_POLLS {
+                out[2] = Some(Command::Commission);
             }
         } else {
-            if COMMISSIONING && (3..board::LONG_PRESS_POLLS).contains(&u.pressed_polls) {
-                send(Command::Button);
+            if COMMISSIONING && (3..board::LONG_PRESS_POLLS).contains(&m.pressed_polls) {
+                out[2] = Some(Command::Button);
             }
-            u.pressed_polls = 0;
+            m.pressed_polls = 0;
         }
+        out
     }
 
     /// A software-started conversion of the pot (ADC1 regular channel).
@@ -810,7 +925,9 @@ mod app {
             defmt::info!("commissioning: {=str} step", stage_name(stage));
             return;
         }
-        if l.last_state != Some(r.state) {
+        if l.last_state.map(|s| (s.code(), s.fault_code()))
+            != Some((r.state.code(), r.state.fault_code()))
+        {
             l.last_state = Some(r.state);
             match r.state {
                 DriveState::Fault(f) => defmt::warn!("state: fault {}", f),

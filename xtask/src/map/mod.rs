@@ -354,7 +354,7 @@ pub fn speed_limits_rpm(case: &Case) -> Result<(f64, f64)> {
     let (sc, _) = scenario(case, 0.0, 0.0)?;
     let setup = build_drive(&sc)?;
     let to_rpm = |pu| setup.base.speed_rad_s(pu) / setup.model.p() * 60.0 / TAU;
-    let config = setup.drive.config();
+    let config = &setup.config;
     let min = if case.observer == "mras-current" {
         0.0
     } else {
@@ -416,12 +416,7 @@ pub fn run_point(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<Point> {
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
                     (a.min(r.speed_rpm), b.max(r.speed_rpm))
                 });
-            let limit_a = build_drive(&sc)?
-                .drive
-                .config()
-                .design
-                .speed
-                .current_limit_a;
+            let limit_a = build_drive(&sc)?.config.design.speed.current_limit_a;
             Outcome::Missed(Miss {
                 speed_rpm: (lo, hi),
                 drift_rpm: (w[0].speed_rpm, last.speed_rpm),

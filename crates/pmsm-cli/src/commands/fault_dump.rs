@@ -67,7 +67,7 @@ impl Recorder {
     /// Records control sample `k` (after `drive.step(input)`), as firmware does.
     pub fn record(&mut self, k: usize, drive: &Drive, input: &DriveInput) {
         if !self.samples.is_frozen() {
-            self.samples.record(drive, input);
+            self.samples.record(drive.isr(), input);
             self.last_k = k;
         }
     }

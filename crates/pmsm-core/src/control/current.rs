@@ -127,6 +127,11 @@ pub struct CurrentConfig {
 }
 
 impl CurrentConfig {
+    /// `ψ` of the feed-forward, per unit.
+    pub(crate) fn psi(&self) -> Pu {
+        self.psi
+    }
+
     /// Designs the two current controllers for `motor` sampled as in `base`.
     ///
     /// Errors: a motor parameter ([`ConfigError::Param`]); `bandwidth_rad_s` outside

@@ -25,11 +25,9 @@
 //!
 //! # Discretisation and cost
 //!
-//! The drive runs its slower work in slots (docs/drive.md, "outer loops"): here one update on
-//! each odd sample, over a cycle of eight: the MTPA
-//! current in slot 1, the integrator in slots 3 and 7, the `i_q` limit in slot 5 (the MTPA
-//! current and the limit every `8 T_s`, the integrator every `T = 4 T_s`), so that no sample
-//! pays for more than one of them. Neither square root is taken: both are tracked by one
+//! The drive runs it in its task, once per task period of eight samples (docs/drive.md, "two
+//! rates"): the MTPA current and the `i_q` limit once, the integrator twice (every
+//! `T = 4 T_s`), [`FluxController::update`]. Neither square root is taken: both are tracked by one
 //! iteration per update whose fixed point is the root (a square root costs ~60 instructions,
 //! and the configuration must stay a few words for the 16 KiB of the smallest target). MTPA:
 //! `f = i_q² − i_d² + 2a i_d` vanishes on the law and grows with `i_d`, so
@@ -329,7 +327,7 @@ impl FluxController {
         }
     }
 
-    /// One update of the MTPA current for the speed loop's `iq` (the drive's slot 1). Out of
+    /// One update of the MTPA current for the speed loop's `iq`. Out of
     /// line, as the two below: their 64-bit temporaries would otherwise enlarge the drive
     /// step's frame on ARMv6-M even when off.
     #[inline(never)]
@@ -358,7 +356,7 @@ impl FluxController {
     }
 
     /// One update of the field-weakening integrator from the vector `v` the modulator made
-    /// at the last sample and its circle's radius `v_max` (the drive's slots 3 and 7).
+    /// at the last sample and its circle's radius `v_max` (twice per task period).
     #[inline(never)]
     pub fn update_fw(&mut self, c: &FluxConfig, v: &AlphaBeta, v_max: Pu) {
         // Field weakening: (k V_max)² − |v|² with k = 31/32 (15/16 overmodulating), each voltage shifted right by 11
@@ -386,7 +384,7 @@ impl FluxController {
         self.id_ref = self.id_mtpa.saturating_add(self.delta);
     }
 
-    /// One update of the `|i_q*|` limit (the drive's slot 5); returns it.
+    /// One update of the `|i_q*|` limit; returns it.
     #[inline(never)]
     pub fn update_circle(&mut self, c: &FluxConfig) -> Pu {
         // √(I_max² − i_d²) by one iteration y ← y + g (I_max² − i_d² − y²)/(2 I_max)
@@ -404,30 +402,19 @@ impl FluxController {
         self.iq_max
     }
 
-    /// The update of the drive's outer-loop slot `slot` (0–7): 1 the MTPA current, 3 and 7
-    /// the field-weakening integrator, 5 the `i_q` limit (returned: the speed loop's new
-    /// limit); even slots none (the speed loop's).
-    #[inline(always)]
-    pub fn update(
-        &mut self,
-        c: &FluxConfig,
-        slot: u8,
-        iq: Pu,
-        v: &AlphaBeta,
-        v_max: Pu,
-    ) -> Option<Pu> {
-        match slot {
-            1 => self.update_mtpa(c, iq),
-            3 | 7 => self.update_fw(c, v, v_max),
-            5 => return Some(self.update_circle(c)),
-            _ => {}
-        }
-        None
+    /// The updates of one task period: the MTPA current for the speed loop's `iq`, the
+    /// field-weakening integrator twice on the modulator's vector `v` and circle `v_max` of
+    /// the period's last sample, the `|i_q*|` limit (returned: the speed loop's new limit).
+    pub fn update(&mut self, c: &FluxConfig, iq: Pu, v: &AlphaBeta, v_max: Pu) -> Pu {
+        self.update_mtpa(c, iq);
+        self.update_fw(c, v, v_max);
+        self.update_fw(c, v, v_max);
+        self.update_circle(c)
     }
 
-    /// [`FluxController::update`] for `slot`, then [`FluxController::reference`].
-    pub fn step(&mut self, c: &FluxConfig, slot: u8, iq: Pu, v: AlphaBeta, v_max: Pu) -> Dq {
-        self.update(c, slot, iq, &v, v_max);
+    /// [`FluxController::update`], then [`FluxController::reference`].
+    pub fn step(&mut self, c: &FluxConfig, iq: Pu, v: AlphaBeta, v_max: Pu) -> Dq {
+        self.update(c, iq, &v, v_max);
         self.reference(iq)
     }
 }
@@ -456,8 +443,9 @@ mod tests {
             beta: Pu::ZERO,
         };
         let mut out = Dq::default();
-        for k in 0..40_000u32 {
-            out = f.step(c, (k % 8) as u8, pu_from_f64(iq), inside, Pu::from_num(1));
+        // 40 000 samples, a task period at a time.
+        for _ in 0..5_000 {
+            out = f.step(c, pu_from_f64(iq), inside, Pu::from_num(1));
         }
         out
     }

@@ -167,7 +167,8 @@ impl LightLoadConfig {
 /// `I_LL/ω_f` of [`LightLoadConfig`]: `current` [`Pu`] bits over `fade_units` (ω_f in units of
 /// 2⁻¹² pu, taken at least one), rounded to nearest.
 fn per_speed(current: i32, fade_units: i32) -> i32 {
-    let (c, n) = (i64::from(current), i64::from(fade_units.max(1)));
+    // c < 2²⁸ (at most 10 pu), n ≤ 10⁹: both sums fit 32 bits (no 64-bit division).
+    let (c, n) = (current.max(0) as u32, fade_units.max(1) as u32);
     ((2 * c + n) / (2 * n)) as i32
 }
 

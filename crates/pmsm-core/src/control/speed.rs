@@ -77,7 +77,7 @@
 //! |---|---|---|
 //! | `ω*`, `ω̂` (of `ω_b`), `i_q*`, `I_max` (of `I_b`), `ff`, `Δff` | [`Pu`] Q8.24 | ±128 (saturated); `I_max` ≤ 64 |
 //! | `−K_pΩ ω_b/I_b` | [`Coef<17>`](Coef) | (−2¹⁴, 0], resolution 2⁻¹⁷ |
-//! | `K_iΩ T ω_b/I_b` (`T` the speed loop's period) | [`Coef<31>`](Coef) | 0 or [2⁻²³, 1) |
+//! | `K_iΩ T ω_b/I_b` (`T` the speed loop's period) | [`Coef<28>`](Coef) | 0 or [2⁻²⁰, 8) |
 //! | `s` | Q8.56 in `i64` (high word: [`Pu`]; LSB that of `2 K_iΩ T e` exact) | `[−I_max, I_max]` |
 //!
 //! `u_raw` saturates its high word: with `|s| ≤ I_max ≤ 64` a saturated sum lies beyond the
@@ -91,23 +91,21 @@ use crate::num::{Coef, Pu, pu_from_f64};
 use crate::params::{MotorParams, in_range};
 use crate::units::PerUnit;
 
-/// Fractional bits of `K_iΩ T` (per unit, below 1); its exact product times 2 is in the
-/// state's LSB (2⁻⁵⁶).
-const KI_FRAC: u32 = 31;
-/// Smallest non-zero `K_iΩ T ω_b/I_b`: 2⁻²³, eight significant bits.
-const KI_MIN: f64 = 1.0 / 8_388_608.0;
-/// Largest `K_iΩ T ω_b/I_b`: below 1 (1 was accepted before: an integrator that alone
-/// corrects a unit error in one sample, which no speed loop needs).
-const KI_MAX: f64 = 1.0 - 1.0 / 2_147_483_648.0;
+/// Fractional bits of `K_iΩ T` (per unit, below 8: the task's period is several samples);
+/// its exact product, shifted into the state's LSB (2⁻⁵⁶), saturates.
+const KI_FRAC: u32 = 28;
+/// Smallest non-zero `K_iΩ T ω_b/I_b`: 2⁻²⁰, eight significant bits.
+const KI_MIN: f64 = 1.0 / 1_048_576.0;
+/// Largest `K_iΩ T ω_b/I_b`: below 8 (an integrator that alone corrects eight times a unit
+/// error in one step of the task, which no speed loop needs).
+const KI_MAX: f64 = 8.0 - 1.0 / 268_435_456.0;
 
 /// Default `ω_n T_s` of the speed loop (a twentieth of the current loop's default).
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.005;
 
-/// Default [`SpeedDesign::decimation`]: the speed loop on every sample. Every second sample
-/// (2, on the drive's even samples, leaving the odd ones to the d-axis reference's updates)
-/// halves its cost, but at light load on motor B, where the dead time makes the estimated
-/// speed ripple by ±50 r/min, the slower loop settled 1–8 % off its reference
-/// (docs/drive.md, "outer loops").
+/// Default [`SpeedDesign::decimation`] of a speed loop on its own: every sample. The drive's
+/// design takes its task period instead (`TASK_PERIOD`, the loop in the drive's task on the
+/// period's mean speed: docs/drive.md, "two rates").
 pub const SPEED_LOOP_DECIMATION: u32 = 1;
 
 /// [`SpeedDesign::reference_weight`] of the IP form of Khlaief, Boussak, Gossa (2012): the
@@ -125,8 +123,9 @@ pub struct SpeedDesign {
     pub damping: f64,
     /// Current limit `I_max`, A peak.
     pub current_limit_a: f64,
-    /// The speed loop runs once every `decimation` control samples (≥ 1; the drive takes 1,
-    /// 2 or 4: its outer-loop slots, docs/drive.md); the gains are designed for that period.
+    /// The speed loop runs once every `decimation` control samples (≥ 1; the drive's task
+    /// runs it once per task period, so the drive takes `TASK_PERIOD`, docs/drive.md, "two
+    /// rates"); the gains are designed for that period.
     pub decimation: u32,
     /// `(K_iΩ, K_pΩ)` in A/(rad/s · s) and A/(rad/s) of electrical speed, overriding the
     /// design from `ω_n` and `ζ`.
@@ -362,11 +361,12 @@ impl SpeedController {
         let (up, down) = (e > 0, e < 0);
         // u_raw ≥ I_max ⟺ high ≥ hi; u_raw ≤ −I_max ⟺ high < lo, or high = lo and no fraction.
         let stop = (high >= hi && up) || ((high < lo || (high == lo && low == 0)) && down);
-        // K_iΩ T e, exact, in the state's LSB 2⁻⁵⁶: |·| < 2⁶³.
+        // K_iΩ T e, exact (|·| < 2⁶²), in the state's LSB 2⁻⁵⁶, saturated: beyond 2⁶³ it is
+        // far beyond the limit, where the clamp below takes it.
         let inc = if stop {
             0
         } else {
-            c.ki_t.wide(e) << (S_SHIFT - KI_FRAC)
+            c.ki_t.wide(e).saturating_mul(1 << (S_SHIFT - KI_FRAC))
         };
         // u_raw + inc with the high word saturated, then the clamp on the high word.
         let (low, carry) = low.overflowing_add(inc as u32);

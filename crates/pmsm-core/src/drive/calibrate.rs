@@ -110,23 +110,18 @@ impl Calibration {
 /// `SCALE_ONE` when `D ≤ 0`, the currents are within 1/64 pu of each other, or `s` is within
 /// [`SCALE_DEAD_BAND`] of one.
 fn scale(a: [i32; 3], b: [i32; 3]) -> i32 {
-    let [ya, ia, da] = a.map(i64::from);
-    let [yb, ib, db] = b.map(i64::from);
+    let [ya, ia, da] = a.map(f64::from);
+    let [yb, ib, db] = b.map(f64::from);
     let di = ib - ia;
-    // Each mean within ±2²⁰ (units of 2⁻¹⁶ pu): the products within ±2⁴⁰.
-    let d = (da + db) / 2;
-    if di.abs() < 1 << 10 || d <= 0 {
+    // Each mean within ±2²⁰ (units of 2⁻¹⁶ pu): the products within ±2⁴⁰, exact in `f64`
+    // (once per calibration, in the task: no 64-bit integer division in a firmware).
+    let d = (da + db) / 2.0;
+    if libm::fabs(di) < 1024.0 || d <= 0.0 {
         return SCALE_ONE;
     }
-    // `checked_div`: no panic path (di and d are away from zero here).
-    let Some(v_true_g) = (ya * ib - yb * ia).checked_div(di) else {
-        return SCALE_ONE;
-    };
     // (V_true g / D) · 2²⁸, V_true g within ±2²² (64 pu).
-    let Some(s) = (v_true_g.clamp(-(1 << 22), 1 << 22) << 28).checked_div(d) else {
-        return SCALE_ONE;
-    };
-    let s = s.clamp(0, 4 << 28) as i32;
+    let v_true_g = ((ya * ib - yb * ia) / di).clamp(-4_194_304.0, 4_194_304.0);
+    let s = (v_true_g / d * f64::from(SCALE_ONE)).clamp(0.0, f64::from(4 * SCALE_ONE)) as i32;
     if (s - SCALE_ONE).abs() <= SCALE_DEAD_BAND {
         SCALE_ONE
     } else {

@@ -1,7 +1,8 @@
 //! On-line learning of the inverter's distortion voltage while running (docs/distortion.md):
-//! a background task, off the control path like [`super::Tracker`], that reads what
-//! [`Drive::step`] leaves behind and rescales the dead-time compensation's `V_dead`
-//! ([`Drive::set_deadtime_scale`]) to the one the inverter shows.
+//! off the control path like [`super::Tracker`], in the drive's task (design key
+//! `deadtime_learning`), it reads the interrupt side's window at each task period and
+//! rescales the dead-time compensation's `V_dead` ([`Drive::set_deadtime_scale`]) to the one
+//! the inverter shows.
 //!
 //! # Measurement
 //!
@@ -49,7 +50,7 @@
 //! `f32`, about 70 operations per [`DistortionLearner::update`] (one sin/cos), a few more at
 //! the end of a batch.
 
-use super::tracking::pu;
+use super::tracking::{pu, sin_cos_f32};
 use super::{Drive, DriveConfig, TrackerInput};
 use crate::error::ConfigError;
 use crate::num::{Pu, pu_from_f64};
@@ -87,7 +88,7 @@ pub struct DistortionDesign {
 }
 
 impl DistortionDesign {
-    /// For `config`'s dead-time compensation: an update every fourth sample, batches of
+    /// For `config`'s dead-time compensation: an update every task period, batches of
     /// 0.2 s, from three electrical turns per batch up, 50 ms after entering `Run`, the
     /// current beyond ten bands, the speed and the current reference within 10 %, three
     /// quarters of the error per batch and at most a quarter, the scale within [0.25, 4], written when it
@@ -96,7 +97,7 @@ impl DistortionDesign {
         let batch_s = 0.2;
         let dt = config.deadtime();
         Self {
-            interval_samples: 4,
+            interval_samples: super::TASK_PERIOD,
             batch_s,
             min_speed_rad_s: 3.0 * core::f64::consts::TAU / batch_s,
             settle_s: 0.05,
@@ -377,11 +378,8 @@ impl DistortionLearner {
         None
     }
 
-    /// Samples `drive`, updates, and writes a new scale when it moved: the whole background
-    /// task for a caller that owns the drive (the simulator). On an MCU: take
-    /// [`TrackerInput::sample`] and [`Drive::deadtime_scale`] and call
-    /// [`Drive::set_deadtime_scale`] with the control interrupt masked, and
-    /// [`DistortionLearner::update`] in between.
+    /// Samples `drive`, updates, and writes a new scale when it moved: a learner of one's
+    /// own beside a host [`Drive`] (the drive's task runs its own when the design asks).
     pub fn run(&mut self, drive: &mut Drive) {
         if let Some(s) = self.update(&TrackerInput::sample(drive), drive.deadtime_scale()) {
             drive.set_deadtime_scale(s);
@@ -416,8 +414,7 @@ impl DistortionLearner {
             self.status.frozen = f;
             return;
         }
-        let theta = input.theta.0 as f32 * (core::f32::consts::TAU / 4_294_967_296.0);
-        let (s, c) = libm::sincosf(theta);
+        let (s, c) = sin_cos_f32(input.theta);
         // cos 6θ, sin 6θ by three complex products.
         let z2 = mul((c, s), (c, s));
         let z3 = mul(z2, (c, s));

@@ -155,7 +155,6 @@ pub struct DriveOutput {
 
 /// What the drive computed at the last sample, for logs and plots.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Telemetry {
     /// The estimate.
     pub estimate: Estimate,
@@ -169,4 +168,7 @@ pub struct Telemetry {
     pub v: AlphaBeta,
     /// The modulator limited the voltage.
     pub saturated: bool,
+    /// The estimator's health figure as the loss-of-lock check sees it (filtered over 10 ms by
+    /// the task, zero outside the closed loop), per unit ([`crate::Estimator::health`]).
+    pub health: Pu,
 }

@@ -4,15 +4,12 @@
 //! is guarded so that a healthy run never trips it (tests: every shipped scenario and a sweep
 //! of random healthy ones).
 //!
-//! The filters are first-order with the pole a power of two (a shift, no product): their time
-//! constants below are rounded to a power of two of their steps (at 14 kHz, 1 ms is 16
-//! samples). The sum check runs every sample and the phase-loss check on even samples (its
-//! counts and filter in steps of two samples: at 14 kHz 5 ms is 32 steps). The odd samples
-//! take turns in the drive's cycle of eight: the stuck channels on slot 1, the estimator's
-//! health figure on slot 3, the stall, driven-backwards and acceleration checks on slot 5 (their
-//! counts and filters in steps of eight samples: at 14 kHz 2 ms is 4 steps, 10 ms 16), and the
-//! current loops' tracking on slot 7 (beside the drive's light-load current). No sample pays
-//! for more than one of them: the odd ones also carry the drive's d-axis updates.
+//! The checks run in the task, once per task period ([`super::TASK_PERIOD`] samples), on
+//! what the interrupt side reports of the period ([`Signals`]): the last sample, and each
+//! phase's mean squared current. The filters are first-order with the pole a power of two (a
+//! shift, no product): their time constants below are rounded to a power of two of task
+//! periods (at 14 kHz a period is 8 samples, 0.57 ms: 2 ms is 4 periods, 10 ms 16). The sum of
+//! the three currents is checked on every sample by the interrupt side.
 //!
 //! | fault | evidence | time to trip |
 //! |---|---|---|
@@ -25,21 +22,17 @@
 //! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu` (default 1.0 pu), from 100 ms after entering the closed loop, in steady state (40 ms at a constant reference with the estimate within 0.02 pu of it throughout, until the reference changes) | 10–20 ms |
 //! | loss of lock (current tracking) | `|i_d − i_d*| + |i_q − i_q*|` in the estimated frame, filtered over 10 ms (held while the modulator limits the voltage) above a third of the current limit, from 100 ms after entering the closed loop | 10–50 ms |
 
-use super::{Fault, Telemetry};
-use crate::frames::Abc;
+use super::Fault;
+#[cfg(doc)]
+use crate::Estimator;
+use crate::frames::{Abc, Dq};
 use crate::num::{Pu, follow, follow_shift, pu_from_f64};
-use crate::observer::{AnyEstimator, Estimator};
 
-/// Thresholds and filter poles, per unit and in samples (`settle_samples`, `ms1`), in steps
-/// of two samples (phase loss) or of eight (stuck channel, stall, driven backwards, loss of
-/// lock).
+/// Thresholds and filter poles, per unit and in task periods.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MonitorConfig {
-    /// 0.15 `I_b`, in quarters of [`Pu`]'s bits (as the filtered sum).
-    pub sum_limit: i32,
-    /// Filters of 1, 2 and 10 ms as shifts: `y += (x − y) >> k`, the pole `2^−k` with the
-    /// time constant rounded to a power of two of samples (no product on the control path).
-    pub ms1: u32,
+    /// Filters of 2 and 10 ms as shifts: `y += (x − y) >> k`, the pole `2^−k` with the
+    /// time constant rounded to a power of two of task periods (no product).
     pub ms2: u32,
     pub ms10: u32,
     /// The phase-loss filter (5 ms), as the others.
@@ -111,53 +104,43 @@ impl MonitorConfig {
     /// For sample period `ts`, base speed `omega_b` (rad/s) and the largest electrical
     /// acceleration the motor can make, `p K_T I_max/J` (rad/s²).
     pub fn new(
-        ts: f64,
+        tt: f64,
         omega_b: f64,
         max_accel_rad_s2: f64,
         current_limit_pu: f64,
         health_limit: Pu,
     ) -> Option<Self> {
-        // The phase-loss check runs on alternate samples, the other slow checks on every eighth
-        // (see `Monitor::check`): their periods, counts and time constants are in steps of
-        // 2 T_s and 8 T_s.
-        let ts2 = 2.0 * ts;
-        let ts8 = 8.0 * ts;
-        // τ/T to the nearest power of two, 1 to 2²⁰ steps of T.
-        let pole = |tau: f64| follow_shift(tau / ts);
-        let pole2 = |tau: f64| follow_shift(tau / ts2);
-        let pole8 = |tau: f64| follow_shift(tau / ts8);
+        // τ/T to the nearest power of two, 1 to 2²⁰ task periods.
+        let pole = |tau: f64| follow_shift(tau / tt);
         Some(Self {
-            sum_limit: pu_from_f64(0.15).to_bits() >> 2,
-            ms1: pole(1e-3)?,
-            ms2: pole8(2e-3)?,
-            ms10: pole8(10e-3)?,
-            stuck_samples: libm::ceil(0.05 / ts8) as u32,
+            ms2: pole(2e-3)?,
+            ms10: pole(10e-3)?,
+            stuck_samples: libm::ceil(0.05 / tt) as u32,
             turning: pu_from_f64(0.02),
             min_power: {
                 let m = 0.01 * 4096.0;
                 (1.5 * m * m) as u32
             },
             phase_loss_speed: pu_from_f64(
-                0.5 / (ts2 * libm::ldexp(1.0, pole2(5e-3)? as i32)) / omega_b,
+                0.5 / (tt * libm::ldexp(1.0, pole(5e-3)? as i32)) / omega_b,
             ),
-            // Σ ω_pu ω_b (2 T_s) = π, in bits of Pu.
+            // Σ ω_pu ω_b T = π, in bits of Pu.
             phase_loss_turn: libm::ceil(
-                core::f64::consts::PI / (omega_b * ts2) * (1u64 << 24) as f64,
+                core::f64::consts::PI / (omega_b * tt) * (1u64 << 24) as f64,
             ) as u64,
-            phase_loss_arm_samples: 2 << pole2(5e-3)?,
-            ms5: pole2(5e-3)?,
-            stall_samples: libm::ceil(0.05 / ts8) as u32,
+            phase_loss_arm_samples: 2 << pole(5e-3)?,
+            ms5: pole(5e-3)?,
+            stall_samples: libm::ceil(0.05 / tt) as u32,
             stall_current: pu_from_f64(0.9 * current_limit_pu),
-            // The speed step over 4 T_s.
-            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * ts8 / omega_b),
-            settle_samples: libm::ceil(0.1 / ts) as u32,
+            accel_limit: pu_from_f64(20.0 * max_accel_rad_s2 * tt / omega_b),
+            settle_samples: libm::ceil(0.1 / tt) as u32,
             health_limit,
-            health_arm_samples: libm::ceil(0.04 / ts8) as u32,
+            health_arm_samples: libm::ceil(0.04 / tt) as u32,
             steady_error: pu_from_f64(0.02),
             backwards_speed: pu_from_f64(0.1),
-            backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * ts8 / omega_b),
-            stall_rise: pu_from_f64(max_accel_rad_s2 / 64.0 * ts8 / omega_b),
-            backwards_samples: libm::ceil(0.02 / ts8) as u32,
+            backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * tt / omega_b),
+            stall_rise: pu_from_f64(max_accel_rad_s2 / 64.0 * tt / omega_b),
+            backwards_samples: libm::ceil(0.02 / tt) as u32,
             tracking_limit: pu_from_f64(current_limit_pu / 3.0).to_bits() >> 2,
         })
     }
@@ -166,8 +149,6 @@ impl MonitorConfig {
 /// State of the checks.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Monitor {
-    /// `|i_a + i_b + i_c|` filtered, in quarters of [`Pu`]'s bits.
-    sum: i32,
     last_bits: [i32; 3],
     same: [u32; 3],
     /// Filtered `i_x²` of each phase (Q8.12 squares, see [`phase_power`]).
@@ -198,77 +179,58 @@ pub(crate) struct Monitor {
     running_for: u32,
 }
 
-/// What the checks look at, per sample.
-pub(crate) struct Signals<'a> {
+/// What the checks look at, once per task period.
+pub(crate) struct Signals {
+    /// The last sample's phase currents.
     pub i_abc: Abc,
+    /// Each phase's mean squared current over the period (Q8.12 squares, [`phase_power`]).
+    pub power: [u32; 3],
+    /// The estimated speed at the last sample.
     pub omega: Pu,
     pub omega_ref: Pu,
     /// The speed loop's current reference.
     pub iq_ref: Pu,
     pub running: bool,
-    /// The last sample's current loops: reference, measurement, modulator limit.
-    pub last: &'a Telemetry,
+    /// The estimator's health figure at the last sample.
+    pub health: Pu,
+    /// The last sample's current loops: reference, measurement, a limit held the voltage.
+    pub i_ref: Dq,
+    pub i_dq: Dq,
+    pub saturated: bool,
 }
 
 impl Monitor {
-    /// The phase currents of the last stuck-channel check (slot 1, in the closed loop).
-    pub(crate) fn phases(&self) -> Abc {
-        let [a, b, c] = self.last_bits.map(Pu::from_bits);
-        Abc { a, b, c }
-    }
-
     /// Restart (a new start).
     pub fn reset(&mut self) {
         *self = Self::default();
     }
 
-    /// One sample of every check; the first fault found. `slot`, the drive's sample count
-    /// modulo eight, chooses the slower checks: phase loss on even slots, the stuck channels
-    /// on slot 1, the health figure on slot 3, the stall, driven-backwards and acceleration
-    /// checks on slot 5, the current loops' tracking on slot 7.
-    pub fn check(
-        &mut self,
-        c: &MonitorConfig,
-        s: &Signals,
-        e: &AnyEstimator,
-        slot: u8,
-    ) -> Option<Fault> {
+    /// One task period of every check; the first fault found.
+    pub fn check(&mut self, c: &MonitorConfig, s: &Signals) -> Option<Fault> {
         let ph = [s.i_abc.a, s.i_abc.b, s.i_abc.c];
-        // Three currents of a star winding sum to zero. In quarters of Pu's bits: the sum
-        // within ±3·2²⁹, no wrap and no saturating step on every sample.
-        let sum = (s.i_abc.a.to_bits() >> 2)
-            .wrapping_add(s.i_abc.b.to_bits() >> 2)
-            .wrapping_add(s.i_abc.c.to_bits() >> 2)
-            .wrapping_abs();
-        self.sum = follow_nonnegative(self.sum, sum, c.ms1);
-        if self.sum > c.sum_limit {
-            return Some(Fault::CurrentSensor(None));
-        }
         let speed = s.omega.saturating_abs();
         self.running_for = if s.running {
             self.running_for.saturating_add(1)
         } else {
             0
         };
-        // The slower checks take turns, so that no sample pays for more than one: phase loss
-        // on even samples (counts and filters in steps of two samples), the others on one odd
-        // slot each (in steps of eight).
-        match slot & 7 {
-            1 if s.running => self.check_stuck(c, &ph, speed),
-            1 => None,
-            3 => self.check_health(c, s, e),
-            5 => self.check_motion(c, s, speed),
-            7 => self.check_tracking(c, s),
-            _ => self.check_phase_loss(c, &ph, speed, s.running),
+        if s.running
+            && let Some(f) = self.check_stuck(c, &ph, speed)
+        {
+            return Some(f);
         }
+        self.check_phase_loss(c, &s.power, speed, s.running)
+            .or_else(|| self.check_health(c, s))
+            .or_else(|| self.check_motion(c, s, speed))
+            .or_else(|| self.check_tracking(c, s))
     }
 
-    /// Phase loss (even samples).
+    /// Phase loss.
     #[inline(always)]
     fn check_phase_loss(
         &mut self,
         c: &MonitorConfig,
-        ph: &[Pu; 3],
+        power: &[u32; 3],
         speed: Pu,
         running: bool,
     ) -> Option<Fault> {
@@ -277,8 +239,7 @@ impl Monitor {
         // ripple away. An open phase keeps its current at zero (noise only), whatever the load:
         // the other two then carry ±the same current, and its share falls with the filter.
         let mut total = 0u32;
-        for (p, &x) in self.power.iter_mut().zip(ph) {
-            let sq = phase_power(x);
+        for (p, &sq) in self.power.iter_mut().zip(power) {
             // Both ≤ 2³⁰: the difference fits an i32, the filtered value stays in [0, 2³⁰].
             *p = p.wrapping_add_signed((sq.wrapping_sub(*p) as i32) >> c.ms5);
             total += *p; // ≤ 3·2³⁰
@@ -307,9 +268,8 @@ impl Monitor {
         None
     }
 
-    /// Stuck channel (slot 1 of eight, in the closed loop only): the same bits for 50 ms while
-    /// the rotor turns and other phases change (compared with the reading eight samples
-    /// before). Only the closed loop's estimate says that the rotor turns: during an alignment
+    /// Stuck channel (in the closed loop only): the same bits for 50 ms while the rotor turns
+    /// and other phases change (the last sample's reading compared with the last period's). Only the closed loop's estimate says that the rotor turns: during an alignment
     /// the estimator runs on a rotor held still, and the MRAS on the EMF drifted to 90 r/min
     /// there while the aligned phase's current, steady, kept its bits (540 V motors of the
     /// random family tripped before they started). Outside the closed loop the check is
@@ -343,8 +303,7 @@ impl Monitor {
         None
     }
 
-    /// Stall, driven backwards, and loss of lock from the estimate's acceleration (slot 5 of
-    /// eight).
+    /// Stall, driven backwards, and loss of lock from the estimate's acceleration.
     fn check_motion(&mut self, c: &MonitorConfig, s: &Signals, speed: Pu) -> Option<Fault> {
         // Stall: at the current limit, far below the reference and not gaining speed, for
         // 50 ms. "Below" along the reference's direction: an estimate turning the other way (a
@@ -426,12 +385,12 @@ impl Monitor {
         None
     }
 
-    /// Loss of lock from the estimator's health figure (slot 3 of eight).
-    fn check_health(&mut self, c: &MonitorConfig, s: &Signals, e: &AnyEstimator) -> Option<Fault> {
+    /// Loss of lock from the estimator's health figure.
+    fn check_health(&mut self, c: &MonitorConfig, s: &Signals) -> Option<Fault> {
         // Loss of lock: the estimator's own figure of how badly its model explains the
         // measurements, filtered, once settled.
         self.health = if s.running {
-            follow(self.health, e.health(), c.ms10)
+            follow(self.health, s.health, c.ms10)
         } else {
             Pu::ZERO
         };
@@ -458,19 +417,16 @@ impl Monitor {
         None
     }
 
-    /// Loss of lock from the current loops' tracking (slot 7 of eight): the last sample's
-    /// error, filtered, held while the modulator limits the voltage (a loop that cannot
-    /// follow then is not lost).
-    #[inline(always)]
+    /// Loss of lock from the current loops' tracking: the last sample's error, filtered, held
+    /// while the modulator limits the voltage (a loop that cannot follow then is not lost).
     fn check_tracking(&mut self, c: &MonitorConfig, s: &Signals) -> Option<Fault> {
-        let t = s.last;
         if !s.running {
             self.tracking = 0;
-        } else if !t.saturated {
+        } else if !s.saturated {
             // In quarters of Pu's bits: each difference within ±2³⁰, their magnitudes' sum
             // below 2³¹: no wrap, no saturating step.
-            let d = (t.i_ref.d.to_bits() >> 2).wrapping_sub(t.i_dq.d.to_bits() >> 2);
-            let q = (t.i_ref.q.to_bits() >> 2).wrapping_sub(t.i_dq.q.to_bits() >> 2);
+            let d = (s.i_ref.d.to_bits() >> 2).wrapping_sub(s.i_dq.d.to_bits() >> 2);
+            let q = (s.i_ref.q.to_bits() >> 2).wrapping_sub(s.i_dq.q.to_bits() >> 2);
             let e = d.unsigned_abs().wrapping_add(q.unsigned_abs()) as i32;
             self.tracking = follow_nonnegative(self.tracking, e, c.ms10);
         }
@@ -490,7 +446,7 @@ impl Monitor {
 /// the result lies between them, so plain 32-bit arithmetic cannot wrap (saturating steps cost
 /// the Cortex-M0 a branch each).
 #[inline(always)]
-fn follow_nonnegative(y: i32, x: i32, k: u32) -> i32 {
+pub(crate) fn follow_nonnegative(y: i32, x: i32, k: u32) -> i32 {
     y.wrapping_add(x.wrapping_sub(y) >> k)
 }
 
@@ -498,226 +454,10 @@ fn follow_nonnegative(y: i32, x: i32, k: u32) -> i32 {
 /// beyond any overcurrent trip): a 32-bit product on every core, and three of them sum
 /// below 2³² (each ≤ 2³⁰).
 #[inline(always)]
-fn phase_power(i: Pu) -> u32 {
+pub(crate) fn phase_power(i: Pu) -> u32 {
     let a = (i.to_bits().unsigned_abs() >> 12).min(1 << 15);
     a * a
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::drive::{DriveConfig, DriveOptions};
-    use crate::fixtures::{inverter_b, motor_b};
-    use crate::observer::EstimatorKind;
-
-    fn config() -> (DriveConfig, AnyEstimator) {
-        let options = DriveOptions {
-            estimator: EstimatorKind::Nlo,
-            ..DriveOptions::default()
-        };
-        let c = DriveConfig::from_params(&motor_b(), &inverter_b(), 14e3, options).unwrap();
-        let e = AnyEstimator::new(&c.estimator);
-        (c, e)
-    }
-
-    /// Steps the monitor with `omega(k)` against the reference `omega_ref` at the current
-    /// reference `iq_ref`; the sample of the first fault.
-    fn run(
-        omega_ref: f64,
-        iq_ref: f64,
-        omega: impl Fn(u32) -> f64,
-        n: u32,
-    ) -> Option<(u32, Fault)> {
-        let (c, e) = config();
-        let mut m = Monitor::default();
-        let last = Telemetry::default();
-        for k in 0..n {
-            let s = Signals {
-                i_abc: Abc::default(),
-                omega: pu_from_f64(omega(k)),
-                omega_ref: pu_from_f64(omega_ref),
-                iq_ref: pu_from_f64(iq_ref),
-                running: true,
-                last: &last,
-            };
-            // The first sample is slot 1, as the drive's first (its slot is counted before
-            // use).
-            if let Some(f) = m.check(&c.monitor, &s, &e, (k + 1) as u8) {
-                return Some((k, f));
-            }
-        }
-        None
-    }
-
-    /// Steps the monitor at a steady 0.5 pu with the current loops `error` (a fraction of the
-    /// current limit) off their q reference, the modulator limiting or not; the sample of the
-    /// first fault.
-    fn tracking(error: f64, saturated: bool, n: u32) -> Option<(u32, Fault)> {
-        let (c, e) = config();
-        let limit = c.design.speed.current_limit_a / c.base.current_a;
-        let last = Telemetry {
-            i_ref: crate::frames::Dq {
-                d: Pu::ZERO,
-                q: pu_from_f64(0.2 * limit),
-            },
-            i_dq: crate::frames::Dq {
-                d: Pu::ZERO,
-                q: pu_from_f64((0.2 - error) * limit),
-            },
-            saturated,
-            ..Telemetry::default()
-        };
-        let mut m = Monitor::default();
-        for k in 0..n {
-            let s = Signals {
-                i_abc: Abc::default(),
-                omega: pu_from_f64(0.5),
-                omega_ref: pu_from_f64(0.5),
-                iq_ref: last.i_ref.q,
-                running: true,
-                last: &last,
-            };
-            if let Some(f) = m.check(&c.monitor, &s, &e, (k + 1) as u8) {
-                return Some((k, f));
-            }
-        }
-        None
-    }
-
-    /// Phase a holds its bits while b and c change every sample, the estimate at 0.2 pu: the
-    /// sample of the first fault in the closed loop (`running`) or outside it (an alignment,
-    /// whose rotor is held still whatever the estimator drifts to).
-    fn stuck_a(running: bool, n: u32) -> Option<(u32, Fault)> {
-        let (c, e) = config();
-        let mut m = Monitor::default();
-        let last = Telemetry::default();
-        for k in 0..n {
-            let wobble = pu_from_f64(0.001 * f64::from(k % 3));
-            let s = Signals {
-                i_abc: Abc {
-                    a: pu_from_f64(0.1),
-                    b: pu_from_f64(-0.05) + wobble,
-                    c: pu_from_f64(-0.05) - wobble,
-                },
-                omega: pu_from_f64(0.2),
-                omega_ref: Pu::ZERO,
-                iq_ref: Pu::ZERO,
-                running,
-                last: &last,
-            };
-            if let Some(f) = m.check(&c.monitor, &s, &e, (k + 1) as u8) {
-                return Some((k, f));
-            }
-        }
-        None
-    }
-
-    #[test]
-    fn a_stuck_phase_trips_in_the_closed_loop_only() {
-        // 50 ms at 14 kHz is 700 samples, counted in steps of eight.
-        let (k, f) = stuck_a(true, 2000).expect("a fault");
-        assert_eq!(f, Fault::CurrentSensor(Some(0)));
-        assert!((700..=720).contains(&k), "{k}");
-        assert_eq!(stuck_a(false, 2000), None);
-    }
-
-    #[test]
-    fn current_loops_that_lose_their_references_trip_loss_of_lock() {
-        // Judged from 100 ms (1400 samples at 14 kHz) after entering the closed loop; the
-        // 10 ms filter has settled by then.
-        let (k, f) = tracking(0.5, false, 3000).expect("a fault");
-        assert_eq!(f, Fault::LossOfLock);
-        assert!((1400..=1420).contains(&k), "{k}");
-        // A third of the limit is the threshold: a quarter never trips, nor any error while the
-        // modulator limits the voltage (the loop cannot follow then).
-        assert_eq!(tracking(0.25, false, 3000), None);
-        assert_eq!(tracking(0.9, true, 3000), None);
-    }
-
-    #[test]
-    fn a_stall_trips_in_50_ms_and_an_acceleration_at_the_limit_does_not() {
-        let (c, _) = config();
-        let limit = c.design.speed.current_limit_a / c.base.current_a;
-        // The motor's largest acceleration in pu/s, from the floor's rise per step of eight
-        // samples (1/64 of it).
-        let a_max = crate::units::to_f64(c.monitor.stall_rise) * 64.0 * 14e3 / 8.0;
-        assert!((1.0..20.0).contains(&a_max), "{a_max}");
-        // A rotor held at 0.1 pu against a reference of 0.5 pu, the loop at its limit: judged
-        // from 100 ms in the closed loop (1400 samples), then 50 ms (700 samples, counted in
-        // steps of eight).
-        let (k, f) = run(0.5, limit, |_| 0.1, 3000).expect("a fault");
-        assert_eq!(f, Fault::Stall);
-        assert!((2100..=2120).contains(&k), "{k}");
-        // The same backwards (a reference of −0.5 pu).
-        let (k, f) = run(-0.5, -limit, |_| -0.1, 3000).expect("a fault");
-        assert_eq!(f, Fault::Stall);
-        assert!((2100..=2120).contains(&k), "{k}");
-        // Falling: a rotor that a load brings to rest.
-        let falling = |k: u32| (0.2 - k as f64 / 14e3).max(0.0);
-        assert_eq!(
-            run(0.5, limit, falling, 3000).map(|x| x.1),
-            Some(Fault::Stall)
-        );
-        // Accelerating at the limit from rest to the reference, at a thirty-second of the
-        // largest acceleration (a heavy load) or at all of it, with a ripple of ±0.005 pu:
-        // never a stall, however long below half the reference (up to 4 s here).
-        for share in [1.0 / 32.0, 1.0] {
-            let ramp = move |k: u32| {
-                let t = k as f64 / 14e3;
-                (share * a_max * t).min(0.5) + 0.005 * libm::sin(3000.0 * t)
-            };
-            let n = (0.5 / (share * a_max) * 14e3) as u32 + 200;
-            assert_eq!(run(0.5, limit, ramp, n), None, "{share}");
-        }
-        // At a 128th of it: too slow, a stall (50 ms after the ripple falls under the
-        // floor).
-        let crawl = move |k: u32| {
-            let t = k as f64 / 14e3;
-            a_max / 128.0 * t + 0.005 * libm::sin(3000.0 * t)
-        };
-        let (k, f) = run(0.5, limit, crawl, 4000).expect("a fault");
-        assert_eq!(f, Fault::Stall);
-        assert!(k < 2800, "{k}");
-    }
-
-    #[test]
-    fn a_rotor_driven_backwards_trips_within_its_time() {
-        let (c, _) = config();
-        let limit = c.design.speed.current_limit_a / c.base.current_a;
-        // Motor B's largest acceleration p K_T I_max/J is about 4 pu/s. Pushed forwards at the
-        // limit, the rotor turning backwards beyond 0.1 pu and accelerating that way at 1 pu/s
-        // (14 000 samples a second): 20 ms (280 samples) of it trips.
-        let back = |k: u32| -0.11 - (k as f64) / 14e3;
-        let (k, f) = run(0.1, limit, back, 3000).expect("a fault");
-        assert_eq!(f, Fault::DrivenBackwards);
-        assert!((280..=290).contains(&k), "{k}");
-        // The same with the reference and push backwards, the rotor driven forwards.
-        let (k, f) = run(-0.1, -limit, |k| -back(k), 3000).expect("a fault");
-        assert_eq!(f, Fault::DrivenBackwards);
-        assert!((280..=290).contains(&k), "{k}");
-        // From rest: the wrong-way speed passes 0.1 pu at sample 1400, and 20 ms of it trips
-        // (before the stall check, judged from sample 1400, has counted its 50 ms).
-        let (k, f) = run(0.1, limit, |k| -(k as f64) / 14e3, 3000).expect("a fault");
-        assert_eq!(f, Fault::DrivenBackwards);
-        assert!((1400..=1690).contains(&k), "{k}");
-        // Already backwards at a steady 0.5 pu when the loop reaches its limit: 20 ms.
-        let (k, f) = run(0.1, limit, |_| -0.5, 3000).expect("a fault");
-        assert_eq!(f, Fault::DrivenBackwards);
-        assert!(k <= 300, "{k}");
-        // Not pushing at the limit: nothing (a loop still in control).
-        assert_eq!(run(0.1, 0.5 * limit, back, 3000), None);
-        // Healthy reversals at the limit: the wrong-way speed falls from 0.8 pu to 0 at the
-        // full deceleration (0.2 s) or at a fifth of it (an overhauling load, 1 s), with a
-        // ripple of ±0.03 pu: not driven backwards (the stall check, which knows no sign, may
-        // see the slow one's half-speed span).
-        for span_s in [0.2, 1.0] {
-            let reversal = move |k: u32| {
-                let t = k as f64 / 14e3;
-                (0.8 * (1.0 - t / span_s)).max(0.0) + 0.03 * libm::sin(2000.0 * t)
-            };
-            let n = (span_s * 14e3) as u32 + 200;
-            let f = run(-0.8, -limit, reversal, n).map(|x| x.1);
-            assert_ne!(f, Some(Fault::DrivenBackwards), "{span_s} s");
-        }
-    }
-}
+mod tests;

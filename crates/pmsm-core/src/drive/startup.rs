@@ -78,7 +78,7 @@
 //! leave it off by the load angle, as `θ = 0` did).
 
 use super::Fault;
-use super::config::DriveConfig;
+use super::config::OpenLoopConfig;
 use crate::angle::Angle;
 use crate::frames::{AlphaBeta, Dq};
 use crate::num::{Pu, mul_unit};
@@ -105,8 +105,8 @@ pub(crate) struct OpenLoop {
     reversal_lag: Option<Angle>,
     /// The open loop is a reversal from the closed loop.
     reversal: bool,
-    /// Samples held at the handover speed so far, waiting for the estimate.
-    waited: u32,
+    /// The alignment's current ramp, [`Pu`] bits with 16 more fractional bits.
+    ramp: i64,
 }
 
 impl OpenLoop {
@@ -117,10 +117,10 @@ impl OpenLoop {
 
     /// The alignment's end at the angle `theta` already known (the dead-time calibration
     /// after an initial position detection: no pull, the rotor is there).
-    pub fn aligned_at(theta: Angle, c: &DriveConfig) -> Self {
+    pub fn aligned_at(theta: Angle, c: &OpenLoopConfig) -> Self {
         Self {
             theta,
-            count: c.open_loop.align_samples,
+            count: c.align_samples,
             ..Self::default()
         }
     }
@@ -136,41 +136,42 @@ impl OpenLoop {
     /// second half (the q reference is the measured q current of the frame: zero q voltage). Counts the
     /// sample. At the last sample the rotor's angle is taken as the current's,
     /// `atan2(i_β, I)` (module docs, "where the rotor stops").
-    pub fn align_frame(&mut self, c: &DriveConfig, i: AlphaBeta) -> (Angle, Dq) {
+    pub fn align_frame(&mut self, c: &OpenLoopConfig, i: AlphaBeta) -> (Angle, Dq) {
         self.count = self.count.saturating_add(1);
-        let n = c.open_loop.align_samples;
+        let n = c.align_samples;
         let first = (n / 8).max(1);
-        let ramp_to = |k: u32, len: u32| {
-            // I · k/len in i64: the ramp is exact to an LSB and cannot overflow.
-            let bits = (c.open_loop.current.to_bits() as i64 * k.min(len) as i64)
-                .checked_div(len.max(1) as i64)
-                .unwrap_or(0);
-            Pu::from_bits(bits as i32)
+        // I · k/len by steps of I/len (16 more fractional bits): within an LSB of the
+        // exact ramp up to 2¹⁶ samples, without a division per sample.
+        let [step_first, step_second] = c.align_steps;
+        let step = if self.count < first {
+            step_first
+        } else if self.count == first {
+            self.ramp = 0;
+            0
+        } else {
+            step_second
         };
+        self.ramp = self.ramp.saturating_add(step);
+        let top = i64::from(c.current.to_bits());
+        let d = Pu::from_bits(((self.ramp + (1 << 15)) >> 16).min(top) as i32);
         if self.count < first {
             return (
                 ALIGN_FIRST,
                 Dq {
-                    d: ramp_to(self.count, first),
+                    d,
                     q: i.alpha.saturating_neg(),
                 },
             );
         }
         if self.count == n {
-            self.theta = crate::cordic::polar(c.open_loop.current, i.beta).angle;
+            self.theta = crate::cordic::polar(c.current, i.beta).angle;
         }
-        (
-            Angle::ZERO,
-            Dq {
-                d: ramp_to(self.count - first, (n / 2).saturating_sub(first)),
-                q: i.beta,
-            },
-        )
+        (Angle::ZERO, Dq { d, q: i.beta })
     }
 
     /// The alignment has lasted its time.
-    pub fn align_done(&self, c: &DriveConfig) -> bool {
-        self.count >= c.open_loop.align_samples
+    pub fn align_done(&self, c: &OpenLoopConfig) -> bool {
+        self.count >= c.align_samples
     }
 
     /// Open-loop start from the rotor angle `theta`, backwards if `reverse`.
@@ -182,7 +183,7 @@ impl OpenLoop {
             count: 0,
             reversal_lag: None,
             reversal: false,
-            waited: 0,
+            ramp: 0,
         }
     }
 
@@ -190,8 +191,8 @@ impl OpenLoop {
     /// estimated speed `omega`, turned from the estimated angle `theta` by
     /// `atan2(i_q, I)` so that the vector `(I, 0)` pulls the way the speed loop's `i_q` did, and
     /// accelerating towards `reverse`.
-    pub fn reverse(theta: Angle, omega: Pu, iq: Pu, reverse: bool, c: &DriveConfig) -> Self {
-        let turn = crate::cordic::polar(c.open_loop.current, iq).angle;
+    pub fn reverse(theta: Angle, omega: Pu, iq: Pu, reverse: bool, c: &OpenLoopConfig) -> Self {
+        let turn = crate::cordic::polar(c.current, iq).angle;
         Self {
             theta: theta + turn,
             omega,
@@ -199,13 +200,18 @@ impl OpenLoop {
             count: 0,
             reversal_lag: Some(turn),
             reversal: true,
-            waited: 0,
+            ramp: 0,
         }
     }
 
     /// The open loop is a reversal from the closed loop (not the start).
     pub fn is_reversal(&self) -> bool {
         self.reversal
+    }
+
+    /// The frame turns backwards.
+    pub fn is_reverse(&self) -> bool {
+        self.reverse
     }
 
     /// In a reversal, once the imposed frame has come through zero speed to half the handover
@@ -215,10 +221,10 @@ impl OpenLoop {
     /// instead of keeping what it drifted to (the mirror solution). With it the speed to
     /// restart from: the frame's, at least one LSB in the new direction (the estimators take
     /// their direction from its sign). Once per reversal.
-    pub fn restart_angle(&mut self, c: &DriveConfig) -> Option<(Angle, Pu)> {
+    pub fn restart_angle(&mut self, c: &OpenLoopConfig) -> Option<(Angle, Pu)> {
         // Half the handover speed into the new direction: the rotor, which lags the frame's
         // deceleration, has come through zero too.
-        let half = Pu::from_bits(c.open_loop.handover_speed.to_bits() >> 1);
+        let half = Pu::from_bits(c.handover_speed.to_bits() >> 1);
         let through = if self.reverse {
             self.omega <= half.saturating_neg()
         } else {
@@ -241,8 +247,8 @@ impl OpenLoop {
 
     /// Advances the imposed frame by one sample: its angle, speed and current reference
     /// `(I, 0)` (the current vector is the imposed d axis).
-    pub fn advance(&mut self, c: &DriveConfig) -> (Angle, Pu, Dq) {
-        let ol = &c.open_loop;
+    pub fn advance(&mut self, c: &OpenLoopConfig) -> (Angle, Pu, Dq) {
+        let ol = c;
         let step = if self.reverse {
             ol.accel.saturating_neg()
         } else {
@@ -263,64 +269,63 @@ impl OpenLoop {
     }
 
     /// The imposed frame has reached the handover speed in its direction.
-    pub fn at_handover(&self, c: &DriveConfig) -> bool {
-        let h = c.open_loop.handover_speed;
+    pub fn at_handover(&self, c: &OpenLoopConfig) -> bool {
+        let h = c.handover_speed;
         if self.reverse {
             self.omega <= h.saturating_neg()
         } else {
             self.omega >= h
         }
     }
+}
 
-    /// Whether the handover may wait one more sample for an estimate that does not agree yet
-    /// (counting it): a back-EMF estimator started at rest may still be settling, on a light
-    /// rotor whose ramp took a few milliseconds, when the ramp ends. A reversal does not wait:
-    /// its rotor may be held by a load that a wait would let run away.
-    pub fn wait_for_estimate(&mut self, c: &DriveConfig) -> bool {
-        self.waited = self.waited.saturating_add(1);
-        !self.reversal && self.waited <= c.open_loop.handover_wait
-    }
+/// The imposed frame at the handover, as the task sees it in the interrupt's window.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HandoverFrame {
+    pub theta: Angle,
+    pub omega: Pu,
+    /// Turning backwards.
+    pub reverse: bool,
+    /// A reversal from the closed loop (not the start).
+    pub reversal: bool,
+}
 
-    /// Checks the estimate against the imposed frame; on success the torque current the rotor
-    /// gets in the estimated frame, per unit.
-    pub fn handover(&self, est: &Estimate, c: &DriveConfig) -> Result<Pu, Fault> {
-        // δ̂ = θ̂ − θ_ol, measured in the sense of rotation.
-        let delta = if self.reverse {
-            self.theta - est.theta
-        } else {
-            est.theta - self.theta
-        };
-        let angle_ok = delta.0.unsigned_abs() <= (Angle::HALF_PI.0 + HANDOVER_MARGIN.0) as u32;
-        let tolerance = crate::num::pu_from_f64(HANDOVER_SPEED_TOLERANCE);
-        let forward_speed = if self.reverse {
-            est.omega.saturating_neg()
-        } else {
-            est.omega
-        };
-        let speed_ok = forward_speed >= crate::num::mul(tolerance, self.omega.saturating_abs());
-        if !(angle_ok && speed_ok) {
-            // A reversal whose rotor still turns the old way at the handover was held there by
-            // its load: named as such, as the closed loop's check would.
-            if self.reversal && forward_speed < Pu::ZERO {
-                return Err(Fault::DrivenBackwards);
-            }
-            return Err(Fault::Handover(delta, est.omega));
+/// Checks the estimate `est` against the imposed frame (module docs, "Handover"); on success
+/// the torque current the rotor gets in the estimated frame, per unit, from the open loop's
+/// current `current`.
+pub(crate) fn handover(f: &HandoverFrame, est: &Estimate, current: Pu) -> Result<Pu, Fault> {
+    // δ̂ = θ̂ − θ_ol, measured in the sense of rotation.
+    let delta = if f.reverse {
+        f.theta - est.theta
+    } else {
+        est.theta - f.theta
+    };
+    let angle_ok = delta.0.unsigned_abs() <= (Angle::HALF_PI.0 + HANDOVER_MARGIN.0) as u32;
+    let tolerance = crate::num::pu_from_f64(HANDOVER_SPEED_TOLERANCE);
+    let forward_speed = if f.reverse {
+        est.omega.saturating_neg()
+    } else {
+        est.omega
+    };
+    let speed_ok = forward_speed >= crate::num::mul(tolerance, f.omega.saturating_abs());
+    if !(angle_ok && speed_ok) {
+        // A reversal whose rotor still turns the old way at the handover was held there by
+        // its load: named as such, as the closed loop's check would.
+        if f.reversal && forward_speed < Pu::ZERO {
+            return Err(Fault::DrivenBackwards);
         }
-        // The current (I, 0) at θ_ol seen from the rotor at θ_ol + δ: q component I sin(−δ),
-        // signed with the direction.
-        let iq = mul_unit(c.open_loop.current, (-delta).sin_cos().sin);
-        Ok(if self.reverse {
-            iq.saturating_neg()
-        } else {
-            iq
-        })
+        return Err(Fault::Handover(delta, est.omega));
     }
+    // The current (I, 0) at θ_ol seen from the rotor at θ_ol + δ: q component I sin(−δ),
+    // signed with the direction.
+    let iq = mul_unit(current, (-delta).sin_cos().sin);
+    Ok(if f.reverse { iq.saturating_neg() } else { iq })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drive::config::DriveDesign;
+    use crate::drive::DriveDesign;
     use crate::fixtures::{inverter_b, motor_b};
     use crate::num::pu_from_f64;
     use crate::observer::EstimatorKind;
@@ -336,9 +341,12 @@ mod tests {
         let (m, inv) = (motor_b(), inverter_b());
         let base = PerUnit::new(&m, &inv, 14e3).unwrap();
         let design = DriveDesign::default_for(&m, &inv, &base, EstimatorKind::MrasCurrent);
-        let c = DriveConfig::new(&m, &inv, 14e3, design).unwrap();
-        let i = c.open_loop.current.to_bits() as f64;
-        let n = c.open_loop.align_samples;
+        let c = crate::drive::DriveConfig::new(&m, &inv, 14e3, design)
+            .unwrap()
+            .isr
+            .open_loop;
+        let i = c.current.to_bits() as f64;
+        let n = c.align_samples;
         let first = n / 8;
         assert!(first > 10);
         for ratio in [-1.0, -0.47, -0.01, 0.0, 0.2, 0.9] {

@@ -1,6 +1,6 @@
 //! On-line tracking of the stator resistance `R` and the magnet flux `ψ` (docs/tracking.md):
-//! a background task, off the control path, that reads what [`Drive::step`] already leaves
-//! behind (the estimated frame, the measured current in it, the voltage the estimator saw,
+//! off the control path, in the drive's task (design key `tracking`), it reads what the
+//! interrupt side's window already carries at each task period (the estimated frame, the measured current in it, the voltage the estimator saw,
 //! the speed) and rewrites the coefficients of the drive's model that depend on `R` and `ψ`
 //! (the current-model MRAS of Khlaief, Boussak, Gossa (2012), and the `ψ` of the current
 //! loops' feed-forward) through [`Drive::set_model`].
@@ -49,7 +49,7 @@
 //! coefficients ([`Tracker::coefficients`], `f64`, two exponentials) only when the estimates,
 //! low-passed over [`TrackerDesign::apply_time_s`], moved by more than [`WRITE_THRESHOLD`]. [`Drive::set_model`] copies 14 words.
 
-use super::{Drive, DriveConfig, DriveState};
+use super::{Drive, DriveState};
 use crate::angle::Angle;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq};
@@ -58,6 +58,9 @@ use crate::observer::MrasModel;
 use crate::params::{MotorParams, in_range};
 use crate::units::PerUnit;
 
+mod design;
+pub use design::TrackerDesign;
+
 /// Relative change of `R̂` or `ψ̂` since the last write that makes [`Tracker::update`] ask for
 /// a new write.
 pub const WRITE_THRESHOLD: f32 = 2e-4;
@@ -65,126 +68,8 @@ pub const WRITE_THRESHOLD: f32 = 2e-4;
 /// Time constant of the tracker's filters on the estimated speed and its derivative, s.
 pub const SPEED_FILTER_S: f64 = 0.02;
 
-/// How the tracker is designed, SI units; [`TrackerDesign::default_for`] gives the defaults.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TrackerDesign {
-    /// Control samples between two calls of [`Tracker::update`].
-    pub interval_samples: u32,
-    /// Least electrical speed at which the tracker learns, rad/s.
-    pub min_speed_rad_s: f64,
-    /// Largest distance of the measured current from its reference at which the tracker
-    /// learns, A (either axis).
-    pub max_current_error_a: f64,
-    /// Time in `Run` before the tracker learns, s.
-    pub settle_s: f64,
-    /// Relative standard deviation of the model's `R` (prior).
-    pub rs_sigma: f64,
-    /// Relative standard deviation of the model's `ψ` (prior).
-    pub flux_sigma: f64,
-    /// `R̂/R₀` is kept within this range.
-    pub rs_range: (f64, f64),
-    /// `ψ̂/ψ₀` is kept within this range.
-    pub flux_range: (f64, f64),
-    /// Temperature coefficient of the winding's resistance, 1/K (copper 0.00393).
-    pub rs_per_k: f64,
-    /// Temperature coefficient of the magnet's flux, 1/K (NdFeB about −0.001, ferrite −0.002).
-    pub flux_per_k: f64,
-    /// Random walk of the temperature, K/√s.
-    pub drift_k_per_sqrt_s: f64,
-    /// Random walk of `R/R₀` and `ψ/ψ₀` apart from the temperature, 1/√s.
-    pub independent_per_sqrt_s: f64,
-    /// Noise of one measurement `y`, V.
-    pub noise_v: f64,
-    /// Largest electrical acceleration at which the tracker learns, rad/s² (of the speed
-    /// estimate filtered over [`SPEED_FILTER_S`]): a ramp is not a steady state.
-    pub max_accel_rad_s2: f64,
-    /// Time constant of the low-pass from the filter's estimates to the values written to the
-    /// drive, s: the estimates jitter at the update rate, and each write moves the MRAS's
-    /// model current, which its adaptation reads as a speed error.
-    pub apply_time_s: f64,
-    /// Largest relative change of `R̂` or `ψ̂` per update (keeps the estimator's frame smooth
-    /// while a large model error is learnt).
-    pub max_step: f64,
-    /// The voltage error the inverter may leave near zero current after the dead-time
-    /// compensation, V: the dead-time voltage `V_dead` at the nominal bus (0: no such gate).
-    pub inverter_error_v: f64,
-    /// The dead-time compensation's current band, A: beyond it the residual error falls as
-    /// `band/|i|` (the share of the period a phase spends near zero); `None` when the drive
-    /// does not compensate (the whole `V_dead` everywhere).
-    pub current_band_a: Option<f64>,
-    /// Largest ratio of that residual to the EMF `|ω̂| ψ₀` at which the tracker learns.
-    pub max_inverter_ratio: f64,
-    /// Weight of the current's motion in the measurement noise: the noise grows by this many
-    /// times the voltage `L_d |Δi_d| + L_q |Δi_q|` per update (over [`SPEED_FILTER_S`]).
-    pub transient_weight: f64,
-    /// Time constant of the low-pass on the current before its motion is taken, s (longer
-    /// than the update interval, so that the sampling noise of a steady current does not
-    /// count; shorter than a limit cycle's period).
-    pub motion_filter_s: f64,
-}
-
-impl TrackerDesign {
-    /// An update every 8 samples; learning above 10 % of `ω_b`, the current within 0.2 `I_b`
-    /// of its reference, the speed changing by less than `2 ω_b` per second, 10 ms after
-    /// entering `Run`; the model's `R` within ±50 %, `ψ` within
-    /// ±30 % (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB;
-    /// 10 K/√s; 1 % of the base voltage of noise; 1 % per update at most; 20 ms of low-pass
-    /// to the drive; the current's motion (low-passed over 4 ms) weighted 10 times; no
-    /// inverter gate (see [`TrackerDesign::for_drive`]).
-    pub fn default_for(base: &PerUnit) -> Self {
-        Self {
-            interval_samples: 8,
-            min_speed_rad_s: 0.1 * base.omega_e_rad_s,
-            max_current_error_a: 0.2 * base.current_a,
-            max_accel_rad_s2: 2.0 * base.omega_e_rad_s,
-            settle_s: 0.01,
-            rs_sigma: 0.5,
-            flux_sigma: 0.3,
-            rs_range: (0.5, 2.0),
-            flux_range: (0.6, 1.4),
-            rs_per_k: 0.00393,
-            flux_per_k: -0.001,
-            drift_k_per_sqrt_s: 10.0,
-            independent_per_sqrt_s: 0.003,
-            noise_v: 0.01 * base.voltage_v,
-            max_step: 0.01,
-            apply_time_s: 0.02,
-            inverter_error_v: 0.0,
-            current_band_a: None,
-            max_inverter_ratio: 0.1,
-            transient_weight: 10.0,
-            motion_filter_s: 0.004,
-        }
-    }
-
-    /// [`TrackerDesign::default_for`] the drive's bases, with the inverter gate from its
-    /// dead-time compensation: the residual is its `V_dead` at the nominal bus, fading beyond
-    /// its current band (or everywhere, without compensation); learning where it exceeds 10 %
-    /// of the EMF. (Without the gate, 31 of the 200 healthy scenarios of `cargo xtask sweep`
-    /// lost the lock with tracking on: the start's light-load ramps taught the filter the
-    /// dead-time residue as a resistance and a flux.) Nor below the speed where the drive's
-    /// low-speed d current has faded out (docs/drive.md, "low-speed current"): that current
-    /// saturates the d axis, which the model does not know, and motor B's start with ψ 20 %
-    /// high in the model taught the filter an `R̂` 22 % high there and lost its lock.
-    pub fn for_drive(config: &DriveConfig) -> Self {
-        let dt = config.deadtime();
-        let default = Self::default_for(&config.base);
-        let low_speed = if config.design.low_speed_id_a > 0.0 {
-            config.design.low_speed_fade_rad_s
-        } else {
-            0.0
-        };
-        Self {
-            inverter_error_v: dt.v_dead_nominal_v,
-            current_band_a: config.deadtime_compensation().then_some(dt.design.band_a),
-            min_speed_rad_s: default.min_speed_rad_s.max(low_speed),
-            ..default
-        }
-    }
-}
-
-/// What the tracker reads of a drive after a step: a copy of a few words, cheap to take with
-/// the control interrupt masked.
+/// What the tracker reads of a drive after a step: a few words of the interrupt side's
+/// window.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TrackerInput {
     /// Whether the drive runs in the closed loop.
@@ -327,6 +212,14 @@ pub(super) fn pu(x: Pu) -> f32 {
     x.to_bits() as f32 * (1.0 / (1u32 << PU_FRAC) as f32)
 }
 
+/// `(sin θ, cos θ)` as `f32`, from the core's table ([`Angle::sin_cos`], within 3·10⁻⁹): the
+/// learners' trigonometry without `f32` tables of its own in a firmware image.
+pub(super) fn sin_cos_f32(theta: Angle) -> (f32, f32) {
+    let sc = theta.sin_cos();
+    let q30 = 1.0 / (1u32 << 30) as f32;
+    (sc.sin.to_bits() as f32 * q30, sc.cos.to_bits() as f32 * q30)
+}
+
 impl Tracker {
     /// The tracker of a drive built from `motor` (its model of the motor) with the bases
     /// `base`.
@@ -339,7 +232,6 @@ impl Tracker {
     ) -> Result<Self, ConfigError> {
         motor.validate()?;
         let d = design;
-        let dt = d.interval_samples as f64 * base.sample_s;
         in_range(
             "tracking.interval_samples",
             d.interval_samples as f64,
@@ -395,11 +287,20 @@ impl Tracker {
         )?;
         in_range("tracking.transient_weight", d.transient_weight, 0.0, 1e4)?;
         in_range("tracking.motion_filter_s", d.motion_filter_s, 0.0, 1.0)?;
+        Ok(Self::build(motor, base, design))
+    }
+
+    /// [`Tracker::new`] without the checks: for a design the drive made itself
+    /// ([`TrackerDesign::for_drive`] of a configuration that was checked), so that a firmware
+    /// links no check of keys it never sets.
+    pub(crate) fn build(motor: &MotorParams, base: &PerUnit, design: TrackerDesign) -> Self {
+        let d = design;
+        let dt = d.interval_samples as f64 * base.sample_s;
         let drift2 = d.drift_k_per_sqrt_s * d.drift_k_per_sqrt_s * dt;
         let ind2 = d.independent_per_sqrt_s * d.independent_per_sqrt_s * dt;
         let (gr, gp) = (d.rs_per_k, d.flux_per_k);
         let (vr, vp) = (d.rs_sigma * d.rs_sigma, d.flux_sigma * d.flux_sigma);
-        Ok(Self {
+        Self {
             motor: *motor,
             base: *base,
             design,
@@ -442,7 +343,7 @@ impl Tracker {
             written: [1.0, 1.0],
             run_updates: 0,
             status: TrackerStatus::default(),
-        })
+        }
     }
 
     /// The design.
@@ -543,9 +444,8 @@ impl Tracker {
             return;
         }
         // The voltage acts over the coming period: its frame is at the mid-period angle.
-        let angle = input.theta.0 as f32 * (core::f32::consts::TAU / 4_294_967_296.0)
-            + self.half_turn * w_hat;
-        let (s, c) = libm::sincosf(angle);
+        let turn = self.half_turn * w_hat * (4_294_967_296.0 / core::f32::consts::TAU);
+        let (s, c) = sin_cos_f32(input.theta + Angle(turn as i32));
         let (va, vb) = (pu(input.v.alpha), pu(input.v.beta));
         let (vd, vq) = (va * c + vb * s, vb * c - va * s);
         let (wd, wq) = (vd + w_hat * self.lq * iq, vq - w_hat * self.ld * id);

@@ -28,10 +28,9 @@
 //!   `4 i_band`, so that each crossing is brief (without it every phase sits near zero at
 //!   light load and the MRAS would never adapt).
 //!
-//! The drive checks once every eight samples, on the slot of the MRAS's gain schedule, from
-//! the phase currents the monitor read eight samples before (reading the input's instead cost
-//! every sample of the Cortex-M0 some 45 instructions), and holds the next eight updates: at
-//! 160 r/min on motor B a crossing lasts some 50 samples.
+//! The drive's task checks once per task period (eight samples), from the phase currents of
+//! the window's last sample, and the interrupt side holds the eight updates after it takes
+//! the task's command: at 160 r/min on motor B a crossing lasts some 50 samples.
 //!
 //! Formats: all thresholds [`Pu`] magnitudes in bits (Q8.24 of `ω_b`, `V_b` and `I_b`).
 

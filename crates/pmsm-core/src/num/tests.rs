@@ -1,5 +1,6 @@
 //! Unit tests of `num`.
 
+use super::wide::{umul_halves, wmul_halves};
 use super::*;
 use proptest::prelude::*;
 

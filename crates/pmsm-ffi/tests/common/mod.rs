@@ -4,7 +4,7 @@ pub mod scenario;
 use pmsm_ffi::{
     PMSM_STORAGE_WORDS, pmsm_clear_fault, pmsm_config_t, pmsm_drive_init, pmsm_drive_t,
     pmsm_input_t, pmsm_output_t, pmsm_set_speed_ref, pmsm_start, pmsm_status_t, pmsm_step,
-    pmsm_stop, pmsm_storage_t,
+    pmsm_stop, pmsm_storage_t, pmsm_task,
 };
 use scenario::{CMD_CLEAR_FAULT, CMD_START, CMD_STOP, WORDS, Word};
 
@@ -37,7 +37,8 @@ pub fn init(s: &mut pmsm_storage_t, c: &pmsm_config_t) -> Result<*mut pmsm_drive
 }
 
 /// One recorded step through the C ABI: the row's commands, its speed reference and its
-/// inputs (each call asserted `PMSM_OK`); the step's output.
+/// inputs (each call asserted `PMSM_OK`), and the task when the step says it is due; the
+/// step's output.
 ///
 /// # Safety
 /// `d` is a live drive handle.
@@ -67,6 +68,9 @@ pub unsafe fn step_row(d: *mut pmsm_drive_t, row: &[i32; WORDS]) -> pmsm_output_
         };
         let mut out = pmsm_output_t::default();
         assert_eq!(pmsm_step(d, &input, &mut out), pmsm_status_t::PMSM_OK);
+        if out.task_due != 0 {
+            assert_eq!(pmsm_task(d), pmsm_status_t::PMSM_OK);
+        }
         out
     }
 }

@@ -23,8 +23,8 @@ use pmsm_core::{
 };
 use pmsm_core::{DeadTimeConfig, DeadTimeDesign};
 use pmsm_core::{
-    Drive, DriveDesign, DriveInput, DriveOutput, EstimatorKind, FluxConfig, FluxController,
-    FluxDesign, StartupMode,
+    Drive, DriveConfig, DriveDesign, DriveInput, DriveOutput, DriveState, EstimatorKind,
+    FluxConfig, FluxController, FluxDesign, PerUnit, StartupMode,
 };
 use pmsm_core::{Identify, IdentifyConfig, IdentifyDesign, IdentifyOutput};
 use pmsm_core::{Ipd, IpdConfig, IpdDesign, IpdOutput};
@@ -220,105 +220,95 @@ fn recorded_drive_input(rec: &CaseData, step: usize) -> (DriveInput, Pu) {
     cases::drive_input(&w)
 }
 
-/// `Drive::step` of `drive` in `Run` on the recorded closed loop of the `drive` replay case
-/// (motor B, current-model MRAS): the drive is fed the recorded inputs, unmeasured, through its
-/// initial position detection, then every step in `Run` is measured.
-#[inline(never)]
-fn bench_drive_step(
-    meter: &Meter,
-    rec: &CaseData<'static>,
-    drive: fn() -> Option<Drive>,
-) -> Option<Stats> {
-    bench_drive_step_on_bus(meter, rec, drive, 8)
+/// The two sides of a drive measured apart: the interrupt step of every sample in `Run`, the
+/// task step of every task period in `Run`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Sides {
+    /// [`pmsm_core::DriveIsr::step`].
+    pub isr: Stats,
+    /// [`pmsm_core::DriveTask::step`].
+    pub task: Stats,
 }
 
-/// [`bench_drive_step`] with the bus reading scaled by `eighths`/8. The drive is designed
-/// here (`drive`), before the benchmark's frame is on the stack, and no caller's frame
-/// holds one.
-#[inline(never)]
-fn bench_drive_step_on_bus(
-    meter: &Meter,
-    rec: &CaseData<'static>,
-    drive: fn() -> Option<Drive>,
-    eighths: i32,
-) -> Option<Stats> {
-    let d = drive();
-    bench_designed_drive(meter, rec, d, eighths)
+impl Sides {
+    /// One sample of `drive` on `x` (the task too when due), counted when `measure`.
+    #[inline(always)]
+    fn step(&mut self, meter: &Meter, drive: &mut Drive, x: &DriveInput, measure: bool) {
+        let (isr, task, handoff) = drive.parts();
+        let mut out = None::<DriveOutput>;
+        let n = meter.insn(&mut || out = Some(isr.step(handoff, x)));
+        black_box(out);
+        if measure {
+            add(&mut self.isr, n);
+        }
+        if isr.task_due() {
+            let n = meter.insn(&mut || task.step(handoff));
+            if measure {
+                add(&mut self.task, n);
+            }
+        }
+    }
 }
 
-/// [`bench_drive_step_on_bus`] on a designed drive.
+/// One call of `n` instructions into `st`.
+fn add(st: &mut Stats, n: u32) {
+    st.calls += 1;
+    st.sum += u64::from(n);
+    st.max = st.max.max(n);
+}
+
+/// The interrupt and task steps of `drive` in `Run` on the recorded closed loop of the
+/// `drive` replay case (motor B, current-model MRAS), with the bus reading scaled by
+/// `eighths`/8: the drive is fed the recorded inputs through its initial position detection,
+/// then every step in `Run` is measured. The drive is designed here (`drive`), before the
+/// benchmark's frame is on the stack, and no caller's frame holds one.
 #[inline(never)]
-fn bench_designed_drive(
+fn bench_drive_sides(
     meter: &Meter,
     rec: &CaseData<'static>,
-    drive: Option<Drive>,
+    config: fn() -> Option<DriveConfig>,
     eighths: i32,
-) -> Option<Stats> {
+) -> Option<Sides> {
+    let mut d = cases::started(config()?);
     let input = |k: usize| {
         let (mut x, w) = recorded_drive_input(rec, k);
         x.vdc = Pu::from_bits(x.vdc.to_bits() / 8 * eighths);
         (x, w)
     };
-    let k0 = first_run_step(rec);
-    let calls = rec.steps.checked_sub(k0).filter(|&n| n > 0)? as u32;
-    let st = bench(
-        meter,
-        calls,
-        || {
-            let mut d = drive;
-            if let Some(d) = d.as_mut() {
-                for k in 0..k0 {
-                    let (x, w) = input(k);
-                    d.set_speed_ref(w);
-                    black_box(d.step(&x));
-                }
-            }
-            (DriveInput::default(), None::<DriveOutput>, d)
-        },
-        |s, k| {
-            let (x, w) = input(k0 + k as usize);
-            s.0 = x;
-            if let Some(d) = s.2.as_mut() {
-                d.set_speed_ref(w);
-            }
-        },
-        |s| {
-            if let Some(d) = s.2.as_mut() {
-                s.1 = Some(d.step(&s.0));
-            }
-        },
-    );
-    Some(st)
+    let mut sides = Sides::default();
+    for k in 0..rec.steps {
+        let (x, w) = input(k);
+        d.set_speed_ref(w);
+        let running = d.state() == DriveState::Run;
+        sides.step(meter, &mut d, &x, running);
+    }
+    black_box(&mut d);
+    Some(sides)
 }
 
-/// The drive of the `drive` case with MTPA and field weakening on and the speed loop every
-/// second sample, so that no sample carries both it and an update of the d-axis reference
-/// (docs/field-weakening.md, "Cost"), started. Fed currents recorded with the default drive's
+/// The drive of the `drive` case with MTPA and field weakening on (their updates in the
+/// task: docs/field-weakening.md, "Cost"), started. Fed currents recorded with the default drive's
 /// d reference, its estimator sees voltages that did not make them, and its estimated speed
 /// leaves the recorded one (by 0.35 pu on motor B's run): what is measured is the cost of its
 /// steps on that trajectory, not on one it would run itself. (In a trial build with the PI
 /// speed loop and the current-model MRAS's low-speed schedule as defaults, the same replay
 /// went into steps with the voltage on the circle that cost up to 1808 instructions on the
 /// Cortex-M4 and 5107 on the Cortex-M0.)
-fn drive_with_flux() -> Option<Drive> {
-    started_drive(|design, _| {
-        design.flux = FluxDesign::ON;
-        design.speed.decimation = 2;
-    })
+#[inline(never)]
+fn drive_with_flux() -> Option<DriveConfig> {
+    edited_config(|design, _| design.flux = FluxDesign::ON)
 }
 
-/// The `drive` case's drive (motor B, current-model MRAS, detection) with `edit` applied to
-/// its design, started.
-fn started_drive(edit: fn(&mut DriveDesign, &Setup)) -> Option<Drive> {
+/// The configuration of the `drive` case's drive (motor B, current-model MRAS, detection)
+/// with `edit` applied to its design.
+fn edited_config(edit: fn(&mut DriveDesign, &Setup)) -> Option<DriveConfig> {
     let b = Setup::motor_b().ok()?;
     let mut design = b
         .drive(EstimatorKind::MrasCurrent, StartupMode::Ipd)
         .ok()?
         .design;
     edit(&mut design, &b);
-    let mut d = Drive::new(b.config(design).ok()?);
-    d.start();
-    Some(d)
+    b.config(design).ok()
 }
 
 /// The default drive with its undervoltage trip at a fifth of the nominal bus, for the
@@ -327,8 +317,9 @@ fn started_drive(edit: fn(&mut DriveDesign, &Setup)) -> Option<Drive> {
 /// loops' circle and the modulator's limit act in 75 of the 388 steps in `Run` (on the host;
 /// none at the recorded bus): the cost of a saturated step, which the recorded run never
 /// reaches.
-fn drive_on_low_bus() -> Option<Drive> {
-    started_drive(|design, b| design.protection.vdc_min_v = 0.2 * b.inverter.vdc_v)
+#[inline(never)]
+fn drive_on_low_bus() -> Option<DriveConfig> {
+    edited_config(|design, b| design.protection.vdc_min_v = 0.2 * b.inverter.vdc_v)
 }
 
 /// The bus reading of [`drive_on_low_bus`]'s benchmark, eighths of the recorded one.
@@ -401,12 +392,14 @@ fn bench_ipd(meter: &Meter, rec: &CaseData<'static>, cfg: IpdConfig) -> Stats {
     )
 }
 
-/// Motor B (Khlaief, Boussak, Gossa (2012)) as the plant of the identification: the dq model
-/// (linear magnetics, `T_e = 1.5 p (ψ i_q + (L_d − L_q) i_d i_q)`, `J ω̇ = T_e − B ω`) in
-/// `f32`, one Euler step per sample, the rotor angle an [`Angle`] (the core's sine table: no
-/// `f32` trigonometry to link), the commanded voltage applied as is (an ideal inverter).
-/// Unmeasured; it only has to lead the identification through every stage as a motor would.
+/// A motor as the plant of the identification and of the estimators' closed loops: the dq
+/// model (linear magnetics, `T_e = 1.5 p (ψ i_q + (L_d − L_q) i_d i_q)`, `J ω̇ = T_e − B ω`)
+/// in `f32`, one Euler step per sample, the rotor angle an [`Angle`] (the core's sine table:
+/// no `f32` trigonometry to link), the commanded voltage applied as is (an ideal inverter).
+/// Unmeasured; it only has to lead the code through its stages as a motor would.
 struct IdPlant {
+    /// `(R Ω, L_d H, L_q H, ψ Wb, J kg m², B N m s, p)`.
+    motor: (f32, f32, f32, f32, f32, f32, f32),
     theta: Angle,
     omega_e_rad_s: f32,
     id_a: f32,
@@ -424,7 +417,7 @@ impl IdPlant {
     /// One sample of `t_s` under the αβ voltage `v` (per unit); returns the αβ currents (per
     /// unit) the ADC reads at the end of it.
     fn step(&mut self, v: AlphaBeta, pwm_on: bool, t_s: f32) -> AlphaBeta {
-        let (r, ld, lq, psi, j, b, p) = MOTOR_B;
+        let (r, ld, lq, psi, j, b, p) = self.motor;
         let q30 = (1u32 << 30) as f32;
         let q24 = (1u32 << 24) as f32;
         let sc = self.theta.sin_cos();
@@ -476,6 +469,7 @@ pub enum IdentifyEnd {
 fn bench_identify(meter: &Meter, cfg: IdentifyConfig) -> (Stats, Stats, IdentifyEnd, u32) {
     let t_s = cfg.sample_s as f32;
     let mut plant = IdPlant {
+        motor: MOTOR_B,
         theta: Angle(0x1C71_C71C),
         omega_e_rad_s: 0.0,
         id_a: 0.0,
@@ -750,17 +744,90 @@ fn run_drive(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) -> Result<(), 
     let ipd = IpdConfig::new(&b.motor, &b.base, IpdDesign::default())?;
     if let Some(rec) = drive_recording() {
         report("ipd_step", &bench_ipd(meter, &rec, ipd));
-        if let Some(st) = bench_drive_step(meter, &rec, || DriveCase::drive().ok()) {
-            report("drive_step", &st);
+        if let Some(st) = bench_drive_sides(meter, &rec, || DriveCase::config().ok(), 8) {
+            report("isr_mras_current", &st.isr);
+            report("task", &st.task);
         }
-        if let Some(st) = bench_drive_step(meter, &rec, drive_with_flux) {
-            report("drive_step_flux", &st);
+        if let Some(st) = bench_drive_sides(meter, &rec, drive_with_flux, 8) {
+            report("isr_flux", &st.isr);
+            report("task_flux", &st.task);
         }
-        if let Some(st) = bench_drive_step_on_bus(meter, &rec, drive_on_low_bus, LOW_BUS_EIGHTHS) {
-            report("drive_step_saturated", &st);
+        if let Some(st) = bench_drive_sides(meter, &rec, drive_on_low_bus, LOW_BUS_EIGHTHS) {
+            report("isr_saturated", &st.isr);
         }
     }
     Ok(())
+}
+
+/// Motor A of Solsona, Valla, Muravchik (2000) with a rotor a tenth as heavy (the
+/// estimators' closed loops reach their speed within the run): `(R Ω, L_d H, L_q H, ψ Wb,
+/// J kg m², B N m s, p)`, [`pmsm_pil::setup::motor_a`]'s but `J`, `B`.
+const MOTOR_A_LIGHT: (f32, f32, f32, f32, f32, f32, f32) =
+    (1.6, 0.0134, 0.0134, 0.288, 0.004256, 0.0004256, 3.0);
+
+/// Samples of an estimator's closed loop (0.4 s at 20 kHz).
+const CLOSED_LOOP_SAMPLES: u32 = 8000;
+
+/// The interrupt and task steps of the drive with `estimator` on [`MOTOR_A_LIGHT`] at 20 kHz
+/// (300 V, 1 µs dead time, the PWM update delay of one period), started at the rotor's
+/// angle, the speed reference at half the rated speed, in a closed loop with [`IdPlant`]
+/// (the voltage the drive's estimator is given applied as is): every step in `Run` measured.
+#[inline(never)]
+fn bench_estimator_drive(meter: &Meter, estimator: EstimatorKind) -> Option<Sides> {
+    let setup = Setup::motor_a().ok()?;
+    let mut m = setup.motor;
+    m.j_kg_m2 = f64::from(MOTOR_A_LIGHT.4);
+    m.b_nm_s = f64::from(MOTOR_A_LIGHT.5);
+    let base = PerUnit::new(&m, &setup.inverter, pmsm_pil::setup::SAMPLE_HZ).ok()?;
+    let mut design = DriveDesign::default_for(&m, &setup.inverter, &base, estimator);
+    design.startup = StartupMode::Known(Angle::ZERO);
+    design.pwm_delay_samples = 1;
+    design.deadtime_calibration = false;
+    let config = DriveConfig::new(&m, &setup.inverter, pmsm_pil::setup::SAMPLE_HZ, design).ok()?;
+    let mut d = Drive::new(config);
+    d.set_speed_ref(base.speed_pu(0.5 * 1200.0 * core::f64::consts::TAU / 60.0 * 3.0));
+    d.start();
+    let mut plant = IdPlant {
+        motor: MOTOR_A_LIGHT,
+        theta: Angle::ZERO,
+        omega_e_rad_s: 0.0,
+        id_a: 0.0,
+        iq_a: 0.0,
+        vb_v: base.voltage_v as f32,
+        ib_a: base.current_a as f32,
+    };
+    let t_s = base.sample_s as f32;
+    let vdc = base.voltage_pu(setup.inverter.vdc_v);
+    let mut sides = Sides::default();
+    let mut i = AlphaBeta::default();
+    for _ in 0..CLOSED_LOOP_SAMPLES {
+        let x = DriveInput {
+            i_abc: inverse_clarke(i),
+            vdc,
+        };
+        let running = d.state() == DriveState::Run;
+        sides.step(meter, &mut d, &x, running);
+        i = plant.step(d.estimator_voltage(), d.state() != DriveState::Idle, t_s);
+    }
+    black_box(&mut d);
+    Some(sides)
+}
+
+/// The interrupt and task steps of each back-EMF estimator's drive in a closed loop
+/// ([`bench_estimator_drive`]): `isr_nlo`, `isr_ao`, `isr_mras_emf` and their tasks (the
+/// image of feature `identify`: the plant fits beside the core where the recording does not).
+#[inline(never)]
+pub fn run_estimators(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
+    for (kind, isr, task) in [
+        (EstimatorKind::Nlo, "isr_nlo", "task_nlo"),
+        (EstimatorKind::Ao, "isr_ao", "task_ao"),
+        (EstimatorKind::MrasEmf, "isr_mras_emf", "task_mras_emf"),
+    ] {
+        if let Some(st) = bench_estimator_drive(meter, kind) {
+            report(isr, &st.isr);
+            report(task, &st.task);
+        }
+    }
 }
 
 /// The identification's benchmarks (the image of feature `identify`, which embeds no

@@ -136,9 +136,17 @@ fn run() -> bool {
     }
 }
 
-/// The image of feature `identify`: the identification's benchmarks only (no recording, no
-/// replay). Succeeds if the identification identified its plant.
+/// The image of feature `identify`: the identification's benchmarks and the back-EMF
+/// estimators' drives in a closed loop (no recording, no replay). Succeeds if the
+/// identification identified its plant.
 fn identify(meter: &meter::Meter) -> bool {
+    bench::run_estimators(meter, &mut |name, st| {
+        hprintln!(
+            "PIL {CPU} {name} insn_mean={} insn_max={}",
+            st.mean(),
+            st.max
+        );
+    });
     let mut ok = false;
     let run = bench::run_identify(
         meter,

@@ -25,9 +25,9 @@ use pmsm_pil::setup::{DRIVE_SAMPLE_HZ, SAMPLE_HZ, Setup};
 /// little more.
 const DEFAULT_STEPS: usize = 100;
 
-/// Default number of steps of the drive case (0.17 s at 14 kHz: initial position detection,
-/// the ramp to 800 r/min, a load step).
-const DEFAULT_DRIVE_STEPS: usize = 2400;
+/// Default number of steps of the drive case (79 ms at 14 kHz: the initial position
+/// detection, the start of the ramp to 800 r/min).
+const DEFAULT_DRIVE_STEPS: usize = 1100;
 
 fn main() -> ExitCode {
     match run() {

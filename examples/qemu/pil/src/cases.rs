@@ -214,11 +214,24 @@ pub struct DriveCase(pub Drive);
 impl DriveCase {
     /// The drive of the case, started (in `Ipd`).
     pub fn drive() -> Result<Drive, ConfigError> {
-        let b = Setup::motor_b()?;
-        let mut d = Drive::new(b.drive(EstimatorKind::MrasCurrent, StartupMode::Ipd)?);
-        d.start();
-        Ok(d)
+        Ok(started(Self::config()?))
     }
+
+    /// The configuration of the case's drive (out of line: its design's frame is gone before
+    /// the drive is built).
+    #[inline(never)]
+    pub fn config() -> Result<pmsm_core::DriveConfig, ConfigError> {
+        Setup::motor_b()?.drive(EstimatorKind::MrasCurrent, StartupMode::Ipd)
+    }
+}
+
+/// A drive built from `config` and started. Out of line, apart from the configuration's
+/// design: the micro:bit's 16 KiB of stack hold one or the other at a time.
+#[inline(never)]
+pub fn started(config: pmsm_core::DriveConfig) -> Drive {
+    let mut d = Drive::new(config);
+    d.start();
+    d
 }
 
 impl Case for DriveCase {

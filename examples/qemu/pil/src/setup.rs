@@ -128,6 +128,10 @@ impl Setup {
         // is the plant's, so it changes nothing) is left out: the recording, which the
         // micro:bit's flash holds no longer, keeps its closed-loop steps.
         design.deadtime_calibration = false;
+        // The detection's pulses 1.5 electrical time constants apart (the default 5 kept the
+        // recording in the detection for four fifths of its steps; the micro:bit's flash
+        // holds the recording beside the core, with the task's learners, at about half).
+        design.ipd.off_time_constants = 1.5;
         self.config(design)
     }
 

@@ -17,6 +17,8 @@ use std::f64::consts::TAU;
 pub struct DriveSetup {
     /// The drive, not started.
     pub drive: Drive,
+    /// Its configuration.
+    pub config: DriveConfig,
     /// Its per-unit bases.
     pub base: PerUnit,
     /// The drive's model of the motor (the plant keeps the true one).
@@ -31,12 +33,6 @@ pub struct DriveSetup {
     pub pwm_per_sample: usize,
     /// PWM periods the plant applies the duties later (`[control] pwm_update_delay_periods`).
     pub pwm_delay_periods: usize,
-    /// The tracker of R and ψ (`[control] tracking`), run every
-    /// `TrackerDesign::interval_samples` samples.
-    pub tracker: Option<Tracker>,
-    /// The learner of the inverter's distortion voltage (`[control] deadtime_learning`), run
-    /// every `DistortionDesign::interval_samples` samples.
-    pub learner: Option<DistortionLearner>,
 }
 
 /// Builds the drive of `sc`: bases, default design for the motor, the scenario's overrides,
@@ -73,22 +69,19 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
     design.pwm_delay_samples = compensation_samples(sc, pwm_delay_periods, pwm_per_sample)?;
     let config = DriveConfig::new(&model, &drive_inverter, sample_hz, design)
         .map_err(|e| anyhow!("{shown}: {e}"))?;
-    let tracker = if sc.control.tracking {
-        let design = TrackerDesign::for_drive(&config);
-        Some(Tracker::new(&model, &base, design).map_err(|e| anyhow!("{shown}: {e}"))?)
-    } else {
-        None
-    };
-    let learner = if sc.control.deadtime_learning {
-        let design = DistortionDesign::for_drive(&config);
-        Some(DistortionLearner::new(&model, &config, design).map_err(|e| anyhow!("{shown}: {e}"))?)
-    } else {
-        None
-    };
+    // The task builds its learners from the configuration; here their design errors are
+    // named.
+    if config.design.tracking {
+        Tracker::new(&model, &base, TrackerDesign::for_drive(&config))
+            .map_err(|e| anyhow!("{shown}: {e}"))?;
+    }
+    if config.design.deadtime_learning {
+        DistortionLearner::new(&model, &config, DistortionDesign::for_drive(&config))
+            .map_err(|e| anyhow!("{shown}: {e}"))?;
+    }
     Ok(DriveSetup {
         drive: Drive::new(config),
-        tracker,
-        learner,
+        config,
         base,
         model,
         inverter,
@@ -166,6 +159,8 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     if let Some(h) = c.health_limit_pu {
         design.protection.health_limit_pu = (h > 0.0).then_some(h);
     }
+    design.tracking = c.tracking;
+    design.deadtime_learning = c.deadtime_learning;
     design.flux.mtpa = c.mtpa;
     design.flux.field_weakening = c.field_weakening;
     design.overmodulation = c.overmodulation;

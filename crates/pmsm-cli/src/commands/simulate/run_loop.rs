@@ -128,23 +128,13 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
     let mut speed_ref_limited = None;
     let mut injector = Injector::new(&sc.faults);
     let mut recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
-    let startup = setup.drive.config().design.startup;
+    let startup = setup.config.design.startup;
     let mut compare = CompareRegisters::new(setup.pwm_delay_periods);
     setup.drive.start();
     for k in 0..n {
         let t = k as f64 / setup.sample_hz;
         let speed_ref_rpm = sc.speed_ref.at(t);
         let (input, out) = control_step(&mut setup, speed_ref_rpm, &sensed);
-        if let Some(tr) = &mut setup.tracker
-            && k % tr.design().interval_samples as usize == 0
-        {
-            tr.run(&mut setup.drive);
-        }
-        if let Some(l) = &mut setup.learner
-            && k % l.design().interval_samples as usize == 0
-        {
-            l.run(&mut setup.drive);
-        }
         recorder.record(k, &setup.drive, &input);
         if let (None, Some(pmsm_core::SpeedRefLimit::AboveMaxSpeed { used, .. })) =
             (speed_ref_limited, setup.drive.speed_ref_limit())
@@ -183,8 +173,9 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         startup,
         deadtime_scale: setup.drive.deadtime_scale().to_num::<f64>(),
         learner: setup
-            .learner
-            .as_ref()
+            .drive
+            .task()
+            .learner()
             .map(pmsm_core::DistortionLearner::status),
     })
 }
@@ -266,11 +257,11 @@ fn record(t: f64, speed_ref_rpm: f64, setup: &DriveSetup, out: &DriveOutput, pla
             }
             _ => None,
         },
-        model_rs_flux: match &setup.tracker {
+        model_rs_flux: match setup.drive.task().tracker() {
             Some(tr) => [tr.rs_ohm(), tr.flux_wb()],
             None => [setup.model.rs_ohm, setup.model.flux_wb],
         },
-        tracker: setup.tracker.as_ref().map(pmsm_core::Tracker::status),
+        tracker: setup.drive.task().tracker().map(pmsm_core::Tracker::status),
     }
 }
 

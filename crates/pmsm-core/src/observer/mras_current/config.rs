@@ -389,6 +389,74 @@ impl MrasModel {
     }
 }
 
+impl MrasCurrentConfig {
+    /// The coefficients of `R` and `ψ` it holds ([`MrasCurrent::set_model`]'s).
+    #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
+    pub(crate) fn model(&self) -> MrasModel {
+        MrasModel {
+            xd_i: self.xd_i,
+            xd_v: self.xd_v,
+            xq_i: self.xq_i,
+            xq_v: self.xq_v,
+            yq_i: self.yq_i,
+            yq_v: self.yq_v,
+            yd_i: self.yd_i,
+            yd_v: self.yd_v,
+            off_d: self.off_d,
+            off_d_acc: self.off_d_acc,
+            off_q_acc: self.off_q_acc,
+            psi_ld: self.psi_ld,
+            xi_scale: self.xi_scale,
+        }
+    }
+}
+
+/// Words of a [`MrasModel`] in the drive's handoff.
+pub(crate) const MRAS_MODEL_WORDS: usize = 15;
+
+impl MrasModel {
+    /// The coefficients as words (the drive's handoff from its task to its interrupt).
+    pub(crate) fn write_words<const N: usize>(&self, w: &mut crate::drive::Packer<N>) {
+        for c in [
+            self.xd_i, self.xd_v, self.xq_i, self.xq_v, self.yq_i, self.yq_v, self.yd_i, self.yd_v,
+        ] {
+            w.i32(c.bits());
+        }
+        w.i32(self.off_d.to_bits());
+        for x in [self.off_d_acc, self.off_q_acc] {
+            w.u32(x as u32);
+            w.u32((x >> 32) as u32);
+        }
+        w.i32(self.psi_ld.to_bits());
+        w.i32(self.xi_scale.bits());
+    }
+
+    /// [`MrasModel::write_words`]'s coefficients.
+    pub(crate) fn read_words<const N: usize>(r: &mut crate::drive::Unpacker<N>) -> Self {
+        let mut c = || Coef::from_bits(r.i32());
+        let (xd_i, xd_v, xq_i, xq_v, yq_i, yq_v, yd_i, yd_v) =
+            (c(), c(), c(), c(), c(), c(), c(), c());
+        let off_d = Pu::from_bits(r.i32());
+        let mut wide = || i64::from(r.u32()) | (i64::from(r.u32()) << 32);
+        let (off_d_acc, off_q_acc) = (wide(), wide());
+        Self {
+            xd_i,
+            xd_v,
+            xq_i,
+            xq_v,
+            yq_i,
+            yq_v,
+            yd_i,
+            yd_v,
+            off_d,
+            off_d_acc,
+            off_q_acc,
+            psi_ld: Pu::from_bits(r.i32()),
+            xi_scale: Coef::from_bits(r.i32()),
+        }
+    }
+}
+
 impl MrasCurrent {
     /// Replaces the coefficients that depend on `R` and `ψ` (a dozen words; the state is
     /// kept, so the model current carries on from where it is). Not for the control path:

@@ -183,6 +183,7 @@ mod gains;
 mod tests;
 mod update;
 
+pub(crate) use config::MRAS_MODEL_WORDS;
 pub use config::{MrasCurrentConfig, MrasModel};
 pub use gains::MrasCurrentGains;
 pub use update::MrasCurrent;

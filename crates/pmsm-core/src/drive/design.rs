@@ -1,0 +1,472 @@
+//! What a drive is designed from: SI units, with defaults computed from the motor and the
+//! inverter ([`DriveDesign::default_for`]).
+
+use super::TASK_PERIOD;
+#[cfg(any(doc, test))]
+use super::config::DriveConfig;
+use crate::Angle;
+use crate::control::current::CurrentDesign;
+use crate::control::flux::FluxDesign;
+use crate::control::light_load::LightLoadConfig;
+use crate::control::low_speed::LowSpeedConfig;
+use crate::control::speed::SpeedDesign;
+use crate::deadtime::{CurrentSource, DeadTimeDesign, DeadTimeMode};
+use crate::ipd::{IpdConfig, IpdDesign};
+use crate::observer::{EstimatorKind, MrasCurrentGains, MrasEmfConfig, default_observer_gain};
+use crate::params::{InverterParams, MotorParams};
+use crate::units::PerUnit;
+
+/// How the drive finds the rotor before it runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StartupMode {
+    /// Voltage pulses, saliency and saturation (Khlaief, Boussak, Gossa (2012) §4).
+    Ipd,
+    /// A d-axis current along the α axis pulls the rotor to `θ = 0` first.
+    Align,
+    /// The rotor angle is known (electrical).
+    Known(Angle),
+    /// [`StartupMode::Ipd`] where the motor's saliency allows it, [`StartupMode::Align`]
+    /// otherwise ([`StartupMode::resolve`]); [`DriveConfig::new`] resolves it, so a drive never
+    /// runs in this mode.
+    Auto,
+}
+
+/// How far above the detector's least accepted saliency ([`IpdDesign::min_saliency`]) a
+/// motor's `|L_q − L_d|/(L_q + L_d)` must be for [`StartupMode::Auto`] to choose the initial
+/// position detection. The detector measures `ΔI/I_0`, which equals that ratio for linear
+/// magnetics at a locked rotor; the dead time, the ADC's steps and the d axis' saturation by
+/// the pulses take part of it away, so the margin is a factor of two: with the default 5 %
+/// minimum a motor needs 10 % (motor B has 23 %, a surface motor 0).
+pub const AUTO_SALIENCY_MARGIN: f64 = 2.0;
+
+impl StartupMode {
+    /// The saliency the initial position detection sees on a linear `motor`,
+    /// `|L_q − L_d|/(L_q + L_d)` (Khlaief, Boussak, Gossa (2012) eq. 10–13, `Δ/Σ`;
+    /// docs/khlaief2012.md §3).
+    pub fn saliency(motor: &MotorParams) -> f64 {
+        libm::fabs(motor.lq_h - motor.ld_h) / (motor.lq_h + motor.ld_h)
+    }
+
+    /// `Auto` made concrete: the initial position detection when the motor's
+    /// [`StartupMode::saliency`] is at least [`AUTO_SALIENCY_MARGIN`] times `ipd.min_saliency`
+    /// and its pulses can be designed on this motor and bus, the alignment otherwise. Other
+    /// modes are returned unchanged.
+    pub fn resolve(self, motor: &MotorParams, base: &PerUnit, ipd: &IpdDesign) -> Self {
+        match self {
+            StartupMode::Auto => {
+                let salient = Self::saliency(motor) >= AUTO_SALIENCY_MARGIN * ipd.min_saliency;
+                if salient && IpdConfig::new(motor, base, *ipd).is_ok() {
+                    StartupMode::Ipd
+                } else {
+                    StartupMode::Align
+                }
+            }
+            other => other,
+        }
+    }
+}
+
+/// The open-loop current-vector start of the back-EMF estimators, and the alignment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpenLoopDesign {
+    /// Current of the alignment and of the open-loop start, A peak.
+    pub current_a: f64,
+    /// Acceleration of the imposed frame, electrical rad/s².
+    pub accel_rad_s2: f64,
+    /// Speed at which the estimator takes over, electrical rad/s.
+    pub handover_speed_rad_s: f64,
+    /// Duration of the alignment, s.
+    pub align_time_s: f64,
+}
+
+impl OpenLoopDesign {
+    /// Rated peak current (the per-unit base); an acceleration that takes 20 % of the torque
+    /// that current makes, `0.2 p K_T I / J`; handover at 10 % of the rated electrical speed
+    /// (or of the base speed; [`DriveDesign::default_for`] raises it for the MRAS on the EMF
+    /// to [`MrasEmfConfig::damped_speed_rad_s`] where that is higher); alignment over 0.5 s.
+    pub fn default_for(motor: &MotorParams, base: &PerUnit) -> Self {
+        let rated_e = rated_e_rad_s(motor, base);
+        Self {
+            current_a: base.current_a,
+            accel_rad_s2: 0.2 * motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2,
+            handover_speed_rad_s: 0.1 * rated_e,
+            align_time_s: 0.5,
+        }
+    }
+}
+
+/// The rated electrical speed, rad/s (the base speed for a motor without a rating).
+fn rated_e_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
+    motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
+        n * core::f64::consts::TAU / 60.0 * motor.p()
+    })
+}
+
+/// Default [`Protection::health_limit_pu`]: 1.0 pu, about five times the largest steady-state
+/// figure of a healthy current-model MRAS on the sweep (0.21 pu) and within the figures of a
+/// lost lock (0.9–2.2 pu). A drive whose model of the motor is off (ψ ±20 %, L ±30 %) explains
+/// the currents worse while still holding the angle: at 0.5 pu 7 of the 27 combinations of
+/// `cargo xtask robustness` that held tripped, at 1.0 pu 2 do, and every combination that
+/// loses the lock ends in a named fault (docs/drive.md, loss of lock).
+pub const DEFAULT_HEALTH_LIMIT_PU: f64 = 1.0;
+
+/// Protection thresholds checked every sample (the reliability work extends this list).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Protection {
+    /// Phase current that trips the drive, A.
+    pub overcurrent_a: f64,
+    /// Bus voltage below which the drive trips, V.
+    pub vdc_min_v: f64,
+    /// Bus voltage above which the drive trips, V.
+    pub vdc_max_v: f64,
+    /// Limit of the estimator's health figure ([`crate::observer::Estimator::health`]),
+    /// filtered over 10 ms, above which the drive trips on loss of lock: per unit of `V_b`
+    /// for the EMF estimators, of `I_b` for the current-model MRAS (so the limit scales with
+    /// the motor's bases). Judged only in steady state (40 ms at a constant reference with the
+    /// estimate within 0.02 pu of it throughout, until the reference changes), because a healthy drive's
+    /// figure depends on the manoeuvre: on the 200-scenario sweep the current-model MRAS
+    /// reaches 1.3 pu while accelerating, but at most 0.21 pu in steady state including load
+    /// steps, while a lost lock shows 0.9–2.2 pu (the 24 V servo driven backwards) or
+    /// 0.5–1.3 pu (model `R` three times the motor's). Default [`DEFAULT_HEALTH_LIMIT_PU`];
+    /// `None`: reported ([`crate::drive::Drive::health`]) but never tripped on.
+    pub health_limit_pu: Option<f64>,
+}
+
+impl Protection {
+    /// Three times the rated peak current (the detector's pulses reach two), the bus within
+    /// 50–125 % of nominal.
+    pub fn default_for(inverter: &InverterParams, base: &PerUnit) -> Self {
+        Self {
+            overcurrent_a: 3.0 * base.current_a,
+            vdc_min_v: 0.5 * inverter.vdc_v,
+            vdc_max_v: 1.25 * inverter.vdc_v,
+            health_limit_pu: Some(DEFAULT_HEALTH_LIMIT_PU),
+        }
+    }
+}
+
+/// Everything a drive is designed from, SI units. [`DriveDesign::default_for`] computes every
+/// default from the motor and the inverter; change fields to override.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveDesign {
+    /// The estimator.
+    pub estimator: EstimatorKind,
+    /// Gain `g` of the estimators of Solsona, Valla, Muravchik (2000), rad/s.
+    pub observer_gain_rad_s: f64,
+    /// Adaptation gains of the current-model MRAS.
+    pub mras_current: MrasCurrentGains,
+    /// Current loops.
+    pub current: CurrentDesign,
+    /// Speed loop.
+    pub speed: SpeedDesign,
+    /// Bandwidth of the first-order filter on the estimated speed that the speed loop uses,
+    /// rad/s, its time constant rounded to a power of two of samples (the filter is a shift);
+    /// `None` for none. Default: five times the default speed-loop bandwidth for the back-EMF
+    /// estimators (their speed carries the dead time's 6th-harmonic ripple), three times for
+    /// the current-model MRAS (docs/drive.md, "speed filter": its proportional adaptation
+    /// passes every voltage error the model sees into the speed, and a speed loop whose gain
+    /// grows with the inertia turned those steps into a limit cycle through the current
+    /// limit).
+    pub speed_filter_rad_s: Option<f64>,
+    /// Dead-time compensation ([`DeadTimeMode::Off`] disables it). Default
+    /// [`DeadTimeDesign::default_for`], with the signs of the measured currents
+    /// ([`CurrentSource::Measured`]) for the back-EMF estimators and of the measured currents
+    /// under load only ([`CurrentSource::MeasuredUnderLoad`]) for the current-model MRAS.
+    pub deadtime: DeadTimeDesign,
+    /// Initial position detection.
+    pub ipd: IpdDesign,
+    /// How the drive starts. Default [`StartupMode::Auto`]; the design a [`DriveConfig`] keeps
+    /// has it resolved.
+    pub startup: StartupMode,
+    /// Open-loop start and alignment.
+    pub open_loop: OpenLoopDesign,
+    /// Trip thresholds.
+    pub protection: Protection,
+    /// The d-axis reference: MTPA and field weakening (docs/field-weakening.md).
+    pub flux: FluxDesign,
+    /// Overmodulation up to six-step beyond the modulator's circle (docs/overmodulation.md;
+    /// default off). On, the current loops' voltage limit becomes
+    /// [`crate::OVERMOD_SIX_STEP_REQUEST`] `V_DC` and field weakening holds the applied
+    /// vector's length within `2 V_DC/3`, the hexagon's vertex.
+    pub overmodulation: bool,
+    /// Control samples between a step's return and the period its duties act over: 0 when
+    /// they act over the coming period (a loop that applies them at once), 1 on pmsm-stm32's
+    /// TIM1, whose compare preload loads them one period later (docs/drive.md, PWM update
+    /// delay). The drive advances the voltage's angle by `ω̂ T_s` per sample of delay and
+    /// gives the estimator the voltage that acted over the period that just ended. At most
+    /// [`MAX_PWM_DELAY_SAMPLES`]; default 0.
+    pub pwm_delay_samples: u8,
+    /// The d-axis current held at light load, A peak (docs/drive.md, "light load";
+    /// [`LightLoadConfig`]); 0 turns it off. Default
+    /// [`LightLoadConfig::default_current_a`]: three times the dead-time compensation's band,
+    /// at most a sixth of the speed loop's current limit, for the current-model MRAS; 0 for
+    /// the back-EMF estimators and for an inverter without dead
+    /// time.
+    pub light_load_id_a: f64,
+    /// The positive d-axis current held at low speed in the closed loop, A peak, faded out at
+    /// [`DriveDesign::low_speed_fade_rad_s`] (docs/drive.md, "low-speed current";
+    /// [`LowSpeedConfig`]); 0 turns it off. Default [`LowSpeedConfig::default_current_a`]: the
+    /// speed loop's current limit, at most `ψ/(2 (L_q − L_d))` on a salient motor, for the
+    /// current-model MRAS; 0 for the back-EMF estimators, which pass through zero speed in
+    /// their open loop.
+    pub low_speed_id_a: f64,
+    /// Electrical speed where the low-speed current has faded out, rad/s. Default
+    /// [`LowSpeedConfig::default_fade_rad_s`]: a fifth of the rated speed (twice the
+    /// back-EMF estimators' handover speed).
+    pub low_speed_fade_rad_s: f64,
+    /// Measure the inverter's distortion voltage at standstill, between the rotor's angle
+    /// found (detection or alignment) and the run, and scale the dead-time compensation to it
+    /// (docs/drive.md, "dead-time calibration"; 40 ms); it runs only when the compensation acts
+    /// on the command. Default: on for the current-model MRAS and an inverter with a dead time.
+    pub deadtime_calibration: bool,
+    /// Hold the current-model MRAS's adaptation through a phase current's zero crossing at
+    /// low speed and light load, where the inverter's distortion there is as large as the EMF
+    /// (docs/drive.md, "Zero crossings at low speed"). Default on; it acts only while the
+    /// dead-time compensation does, and the other estimators ignore it.
+    pub zero_crossing_hold: bool,
+    /// Track the motor's `R` and `ψ` while running and rewrite the drive's model with them
+    /// (the task's [`super::Tracker`], docs/tracking.md).
+    pub tracking: bool,
+    /// Learn the inverter's distortion voltage while running and rescale the dead-time
+    /// compensation (the task's [`super::DistortionLearner`], docs/distortion.md).
+    pub deadtime_learning: bool,
+}
+
+/// Longest PWM update delay the drive compensates, control samples.
+pub const MAX_PWM_DELAY_SAMPLES: u8 = 2;
+
+impl DriveDesign {
+    /// Defaults for `motor` on `inverter` with the bases `base`, running `estimator`.
+    pub fn default_for(
+        motor: &MotorParams,
+        inverter: &InverterParams,
+        base: &PerUnit,
+        estimator: EstimatorKind,
+    ) -> Self {
+        let deadtime = DeadTimeDesign::default_for(motor, inverter);
+        let speed = SpeedDesign {
+            // The speed loop runs in the task.
+            decimation: TASK_PERIOD,
+            ..SpeedDesign::default_for(base)
+        };
+        Self {
+            estimator,
+            observer_gain_rad_s: default_observer_gain(motor, base),
+            mras_current: MrasCurrentGains::default_for(motor, base),
+            current: CurrentDesign::default_for(base),
+            speed: {
+                // A back-EMF estimator's speed carries the ripple of every voltage error the
+                // dead time leaves (6th harmonic): its loop gets 40 % of the default bandwidth.
+                // The current-model MRAS's weighs the reference by a half in the proportional
+                // action: a ramp followed with half the IP's lag (a load that changes with the
+                // reference finds the rotor where it should be) and a fraction of the PI's
+                // overshoot at its end (docs/drive.md, "speed loop: the reference's weight").
+                let mut d = speed;
+                if estimator.needs_open_loop_start() {
+                    d.bandwidth_rad_s *= 0.4;
+                } else {
+                    d.reference_weight = MRAS_REFERENCE_WEIGHT;
+                }
+                d
+            },
+            speed_filter_rad_s: Some(
+                if estimator.needs_open_loop_start() {
+                    5.0
+                } else {
+                    3.0
+                } * crate::control::speed::DEFAULT_BANDWIDTH_TS
+                    / base.sample_s,
+            ),
+            // The back-EMF estimators take the signs of the measured currents: their voltage
+            // model reads every volt the signs get wrong, and where the current leaves its
+            // reference (the open-loop reversal, a loaded handover) the reference's signs are
+            // wrong. On the random family, seeds 1–14, the NLO then holds 301 of 301 runs
+            // against 282, the AO 294 against 269. The current-model MRAS keeps the
+            // reference's at light load, where the measured sign chatters with the ripple, and
+            // takes the measured under load, where the reference's sustain a cycle on strongly
+            // salient motors: 537 of 560 runs against 524 (docs/drive.md, "dead-time
+            // compensation: which current's sign").
+            deadtime: DeadTimeDesign {
+                source: if estimator.needs_open_loop_start() {
+                    CurrentSource::Measured
+                } else {
+                    CurrentSource::MeasuredUnderLoad
+                },
+                ..deadtime
+            },
+            ipd: IpdDesign::default(),
+            startup: StartupMode::Auto,
+            open_loop: {
+                // The MRAS on the EMF hands over where its adaptation is damped ½: at a
+                // tenth of rated speed on a motor of two pole pairs rated near 1000 r/min its
+                // estimate swung about the rotor's until the speed loop drove it through zero
+                // (docs/solsona2000.md §5).
+                let mut d = OpenLoopDesign::default_for(motor, base);
+                if estimator == EstimatorKind::MrasEmf {
+                    d.handover_speed_rad_s = d
+                        .handover_speed_rad_s
+                        .max(MrasEmfConfig::damped_speed_rad_s(base));
+                }
+                d
+            },
+            protection: Protection::default_for(inverter, base),
+            flux: FluxDesign::default(),
+            overmodulation: false,
+            pwm_delay_samples: 0,
+            // The current-model MRAS runs from standstill, where the compensation's error is
+            // its error; the back-EMF estimators hand over at a tenth of rated speed, where
+            // the EMF dwarfs it. (`DriveConfig::new` runs it only with a compensated command.)
+            deadtime_calibration: !estimator.needs_open_loop_start() && inverter.dead_time_s > 0.0,
+            zero_crossing_hold: true,
+            tracking: false,
+            deadtime_learning: false,
+            // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
+            // oscillate at no load; a d current switched in at their handover disturbed an NLO
+            // start of the random family.
+            light_load_id_a: if estimator.needs_open_loop_start() {
+                0.0
+            } else {
+                LightLoadConfig::default_current_a(
+                    deadtime.band_a,
+                    speed.current_limit_a,
+                    inverter.dead_time_s,
+                )
+            },
+            // The back-EMF estimators pass through zero speed in their open loop's current
+            // vector, the same spring; in their closed loop, above the handover speed, the
+            // current changed nothing measurable on the random family.
+            low_speed_id_a: if estimator.needs_open_loop_start() {
+                0.0
+            } else {
+                LowSpeedConfig::default_current_a(motor, speed.current_limit_a)
+            },
+            low_speed_fade_rad_s: LowSpeedConfig::default_fade_rad_s(rated_e_rad_s(motor, base)),
+        }
+    }
+}
+
+/// [`SpeedDesign::reference_weight`] of the drive's default speed loop with the current-model
+/// MRAS (docs/drive.md, "speed loop: the reference's weight"); the back-EMF estimators keep the
+/// IP form ([`crate::IP_FORM`]), whose reference is held at their least speed and whose rotor
+/// must decelerate into the open-loop reversal.
+pub const MRAS_REFERENCE_WEIGHT: f64 = 0.5;
+
+/// The few choices a user makes about a drive; everything else is
+/// [`DriveDesign::default_for`]'s (for more, change a [`DriveDesign`] and use
+/// [`DriveConfig::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveOptions {
+    /// The estimator (default: the current-model MRAS, which starts from standstill).
+    pub estimator: EstimatorKind,
+    /// How the drive starts; `None`: [`StartupMode::Auto`] (initial position detection on a
+    /// salient motor, alignment otherwise).
+    pub startup: Option<StartupMode>,
+    /// Dead-time compensation; `None`: the default of [`DeadTimeDesign::default_for`].
+    pub deadtime: Option<DeadTimeMode>,
+    /// Overmodulation up to six-step ([`DriveDesign::overmodulation`]; default off).
+    pub overmodulation: bool,
+    /// [`DriveDesign::pwm_delay_samples`]; `None`: 0.
+    pub pwm_delay_samples: Option<u8>,
+}
+
+impl Default for DriveOptions {
+    fn default() -> Self {
+        Self {
+            estimator: EstimatorKind::MrasCurrent,
+            startup: None,
+            deadtime: None,
+            overmodulation: false,
+            pwm_delay_samples: None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::{inverter_b, motor_b};
+
+    fn resolved(ld_h: f64, lq_h: f64) -> (f64, StartupMode) {
+        let mut m = motor_b();
+        m.ld_h = ld_h;
+        m.lq_h = lq_h;
+        let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
+        let design = DriveDesign::default_for(&m, &inverter_b(), &base, EstimatorKind::MrasCurrent);
+        assert_eq!(design.startup, StartupMode::Auto);
+        let config = DriveConfig::new(&m, &inverter_b(), 14e3, design).unwrap();
+        (StartupMode::saliency(&m), config.design.startup)
+    }
+
+    #[test]
+    fn auto_start_up_follows_the_saliency() {
+        // Motor B: (40.17 − 25)/(40.17 + 25) mH = 0.233, far above 2 × 5 %: detection.
+        let b = motor_b();
+        let (s, mode) = resolved(b.ld_h, b.lq_h);
+        assert!((s - 0.233).abs() < 0.001, "{s}");
+        assert_eq!(mode, StartupMode::Ipd);
+        // A surface motor: alignment.
+        assert_eq!(resolved(0.03, 0.03), (0.0, StartupMode::Align));
+        // Either side of the threshold 2 × 5 % = 10 %: 8 % aligns, 12 % detects.
+        let (s, mode) = resolved(0.0230, 0.0270);
+        assert!((s - 0.08).abs() < 1e-9 && mode == StartupMode::Align, "{s}");
+        let (s, mode) = resolved(0.0220, 0.0280);
+        assert!((s - 0.12).abs() < 1e-9 && mode == StartupMode::Ipd, "{s}");
+        // L_d > L_q counts by its magnitude.
+        assert_eq!(resolved(b.lq_h, b.ld_h).1, StartupMode::Ipd);
+        // A mode given explicitly is kept.
+        let base = PerUnit::new(&b, &inverter_b(), 14e3).unwrap();
+        let ipd = IpdDesign::default();
+        assert_eq!(
+            StartupMode::Align.resolve(&b, &base, &ipd),
+            StartupMode::Align
+        );
+        assert_eq!(
+            StartupMode::Known(Angle::ZERO).resolve(&b, &base, &ipd),
+            StartupMode::Known(Angle::ZERO)
+        );
+    }
+
+    /// The MRAS on the EMF hands over where its adaptation's loop `s² + (|ω|/c3) s + ψ² c2 |ω|`
+    /// (the constants `MrasEmfConfig::default_for` designs) is damped at least ½: at a tenth of
+    /// rated speed where that is fast enough (motor B at 14 kHz: ζ = 0.82), at the damped
+    /// speed on a slow motor (two pole pairs, 1055 r/min: ζ = 0.40 at a tenth); the other
+    /// estimators hand over at a tenth.
+    #[test]
+    fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
+        let handover = |m: &MotorParams, inv: &InverterParams, kind| {
+            let base = PerUnit::new(m, inv, inv.pwm_hz).unwrap();
+            let d = DriveDesign::default_for(m, inv, &base, kind);
+            let w = d.open_loop.handover_speed_rad_s;
+            let c = MrasEmfConfig::default_for(m, &base, default_observer_gain(m, &base)).unwrap();
+            let [_, c2, c3] = c.constants;
+            let zeta = (w / c3) / (2.0 * (m.flux_wb * m.flux_wb * c2 * w).sqrt());
+            (w / rated_e_rad_s(m, &base), zeta)
+        };
+        let (b, inv_b) = (motor_b(), inverter_b());
+        let (share, zeta) = handover(&b, &inv_b, EstimatorKind::MrasEmf);
+        assert!(
+            (share - 0.1).abs() < 1e-12 && (zeta - 0.82).abs() < 0.01,
+            "{share} {zeta}"
+        );
+        let mut slow = MotorParams::new(2, 0.5822, 0.016699, 0.016699, 0.51839, 0.0076614, 0.0034);
+        slow.rated_speed_rpm = Some(1055.0);
+        slow.rated_current_a = Some(8.24);
+        let inv = InverterParams {
+            vdc_v: 320.0,
+            pwm_hz: 14e3,
+            dead_time_s: 1.06e-6,
+            current_full_scale_a: 30.0,
+        };
+        let (share, zeta) = handover(&slow, &inv, EstimatorKind::MrasEmf);
+        assert!((zeta - crate::MRAS_EMF_MIN_DAMPING).abs() < 1e-9, "{zeta}");
+        assert!(share > 0.15 && share < 0.17, "{share}");
+        for kind in [EstimatorKind::Ao, EstimatorKind::Nlo] {
+            let (share, zeta) = handover(&slow, &inv, kind);
+            assert!(
+                (share - 0.1).abs() < 1e-12 && zeta < 0.41,
+                "{kind:?}: {share} {zeta}"
+            );
+        }
+    }
+}

@@ -1,0 +1,205 @@
+//! The interrupt side's closed loop on a setpoint: the current loops in its frame, the
+//! dead-time compensation and the modulator (Khlaief, Boussak, Gossa (2012), Fig. 1).
+
+use super::{DriveIsr, Setpoint, mid_frame};
+use crate::angle::{Angle, SinCos};
+use crate::control::current::CurrentInput;
+use crate::deadtime::CurrentSource;
+use crate::drive::interface::{DriveInput, DriveOutput};
+use crate::frames::{AlphaBeta, Dq, inverse_park, park};
+#[cfg(feature = "overmodulation")]
+use crate::num::Unit;
+use crate::num::{Pu, follow, mul_unit};
+use crate::svpwm::SvpwmOutput;
+
+impl DriveIsr {
+    /// Current loops in the setpoint's frame, dead-time compensation and modulation
+    /// (Khlaief, Boussak, Gossa (2012), Fig. 1). `i` is the Clarke transform of `input.i_abc`.
+    #[inline(always)]
+    pub(super) fn control(
+        &mut self,
+        input: &DriveInput,
+        i: AlphaBeta,
+        setpoint: Setpoint,
+    ) -> DriveOutput {
+        let Setpoint {
+            theta,
+            omega,
+            i_ref,
+            frame,
+        } = setpoint;
+        let vdc = input.vdc;
+        // Current loops, in the setpoint's frame.
+        let i_dq = match frame {
+            Some(f) => f.i_dq,
+            None => park(i, theta.sin_cos()),
+        };
+        // The bus terms first: the current loops share their reciprocal with the modulator.
+        let inv_vdc = self.inv_vdc.get(vdc, &self.config.svpwm).recip();
+        let out = self.current.step_on(
+            &CurrentInput {
+                i_ref,
+                i: i_dq,
+                omega,
+                vdc,
+                hold: self.telemetry.saturated,
+            },
+            inv_vdc,
+        );
+        // The voltage acts over the coming period: rotate it to the frame's mid-period angle.
+        // With the estimator's two frames, their mean points there exactly, at a length
+        // cos(ω T_s/2) (0.9993 at 1 pu on motor B): a gain the current loops take up, while the
+        // estimator sees the voltage actually modulated.
+        // With a PWM update delay of d samples it acts d periods later, around
+        // θ + (d + ½) ω T_s: `mid_turns` = 2d + 1 half steps (`mid_frame_k` = 2d − 1 on from
+        // the next frame).
+        let sc_mid = match frame {
+            Some(f) => mid_frame(f.sc, f.sc_next, self.config.mid_frame_k),
+            None => {
+                let turn = self.config.open_loop.turn_per_speed;
+                let step = turn.apply_bits(omega.to_bits());
+                (theta + Angle(step.wrapping_mul(self.config.mid_turns) >> 1)).sin_cos()
+            }
+        };
+        let v_ref = inverse_park(out.v, sc_mid);
+        // Dead-time compensation, then the modulator.
+        let v_dt = self.deadtime_vector(input.vdc, i_dq, i_ref, sc_mid);
+        #[cfg(feature = "overmodulation")]
+        let m = if self.config.svpwm.overmodulation() {
+            self.overmodulate(input, v_ref, v_dt)
+        } else {
+            self.modulate(v_ref, vdc, v_dt)
+        };
+        #[cfg(not(feature = "overmodulation"))]
+        let m = self.modulate(v_ref, vdc, v_dt);
+        self.frame_omega = omega;
+        self.v_dt = v_dt;
+        self.telemetry.theta = theta;
+        self.telemetry.i_dq = i_dq;
+        self.telemetry.i_ref = i_ref;
+        self.telemetry.v = m.v;
+        self.telemetry.saturated = m.saturated || out.saturated_d || out.saturated_q;
+        DriveOutput {
+            duties: m.duties,
+            pwm_on: true,
+        }
+    }
+
+    /// The voltage the estimator sees at the next sample, given the one modulated now: that
+    /// of `pwm_delay` samples ago, the one that will have acted over the coming period (a
+    /// delay line of `pwm_delay` vectors).
+    #[inline(always)]
+    pub(super) fn delayed(&mut self, v: AlphaBeta) -> AlphaBeta {
+        match self.config.pwm_delay {
+            0 => v,
+            1 => core::mem::replace(&mut self.v_line[0], v),
+            _ => {
+                let out = self.v_line[1];
+                self.v_line[1] = self.v_line[0];
+                self.v_line[0] = v;
+                out
+            }
+        }
+    }
+
+    /// [`DriveIsr::control`]'s linear modulation of `v_ref` with the dead-time compensation
+    /// `v_dt`; the estimator is given the modulated vector less the dead-time error.
+    #[inline(always)]
+    pub(super) fn modulate(&mut self, v_ref: AlphaBeta, vdc: Pu, v_dt: AlphaBeta) -> SvpwmOutput {
+        let c = &self.config;
+        let m = c
+            .svpwm
+            .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
+        let v_applied = c.deadtime.estimator_voltage(m.v, v_dt);
+        self.v_est = self.delayed(v_applied);
+        m
+    }
+
+    /// [`DriveIsr::control`]'s modulation when overmodulating (docs/overmodulation.md): a leg
+    /// held at duty 0 or 1 does not switch and loses no dead time, and beyond the hexagon the
+    /// currents carry the harmonics of the overmodulation, which the reference does not; so
+    /// when a leg is held the estimator is given the duties' vector less the dead-time error
+    /// of the legs that switch, with the signs of the measured currents. Inside the hexagon,
+    /// as the linear drive.
+    #[cfg(feature = "overmodulation")]
+    #[cold]
+    #[inline(never)]
+    pub(super) fn overmodulate(
+        &mut self,
+        input: &DriveInput,
+        v_ref: AlphaBeta,
+        v_dt: AlphaBeta,
+    ) -> SvpwmOutput {
+        let c = &self.config;
+        let m = c.svpwm.overmodulate_cached(
+            c.deadtime.command(v_ref, v_dt),
+            input.vdc,
+            &mut self.inv_vdc,
+        );
+        let d = m.duties;
+        let held = |x: Unit| x == Unit::ZERO || x == Unit::ONE;
+        let v_dt = if held(d.a) || held(d.b) || held(d.c) {
+            let mut i = input.i_abc;
+            // A zero current is a zero sign: no dead-time error on a held leg.
+            for (x, duty) in [(&mut i.a, d.a), (&mut i.b, d.b), (&mut i.c, d.c)] {
+                if held(duty) {
+                    *x = Pu::ZERO;
+                }
+            }
+            c.deadtime
+                .error_vector_abc_cached(i, input.vdc, &mut self.deadtime_bus)
+        } else {
+            v_dt
+        };
+        let v_applied = c.deadtime.estimator_voltage(m.v, v_dt);
+        self.v_est = self.delayed(v_applied);
+        m
+    }
+
+    /// The dead-time voltage error vector over the coming period (Khlaief, Boussak, Gossa
+    /// (2012), eq. 6–9), from the measured current `i_dq` or from the reference `i_ref` (both
+    /// in the setpoint's frame), turned to the mid-period angle `sc_mid` (docs/drive.md,
+    /// "dead-time compensation: which current's sign").
+    #[inline(always)]
+    pub(super) fn deadtime_vector(
+        &mut self,
+        vdc: Pu,
+        i_dq: Dq,
+        i_ref: Dq,
+        sc_mid: SinCos,
+    ) -> AlphaBeta {
+        // The current the loop will carry, not the reference itself: the q reference
+        // through the closed current loop's lag. The d reference moves slowly: taken as it is.
+        self.i_q_expected = follow(self.i_q_expected, i_ref.q, self.config.deadtime_lag_shift);
+        let deadtime = &self.config.deadtime;
+        // The measured current as sampled is a period and a half old by the middle of the
+        // period the command acts over: turned ahead with the frame, as the reference is.
+        // Within the band its signs chatter with the ripple and the noise: there the
+        // reference's. Under load with the current-model MRAS the task chooses.
+        let measured = match deadtime.source() {
+            CurrentSource::Measured => deadtime.beyond_band(i_dq),
+            CurrentSource::MeasuredUnderLoad => self.measured_signs,
+            CurrentSource::Reference => false,
+        };
+        let i = if measured {
+            i_dq
+        } else {
+            Dq {
+                d: i_ref.d,
+                q: self.i_q_expected,
+            }
+        };
+        // In Run the reference is on q alone: two products instead of four.
+        let i_ab = if i.d == Pu::ZERO {
+            AlphaBeta {
+                alpha: mul_unit(i.q, sc_mid.sin.saturating_neg()),
+                beta: mul_unit(i.q, sc_mid.cos),
+            }
+        } else {
+            inverse_park(i, sc_mid)
+        };
+        self.config
+            .deadtime
+            .error_vector_cached(i_ab, vdc, &mut self.deadtime_bus)
+    }
+}
