@@ -96,8 +96,9 @@ pub(crate) enum Mode {
 /// The task's answer to a window.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Command {
-    /// The number of the window it answers (the interrupt applies it at the end of the next
-    /// one: a later command is the task's overrun).
+    /// The number of the window it answers (the interrupt applies it at its first step after
+    /// the task published it; none answering the last window when the next period ends is
+    /// the task's overrun).
     pub window: u32,
     /// Counts the task's mode changes: a new value makes the interrupt enter `mode` afresh.
     pub epoch: u32,

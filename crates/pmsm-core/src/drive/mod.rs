@@ -179,7 +179,7 @@ impl Drive {
     }
 
     /// Starts from `Idle` with the configured start-up ([`DriveTask::start`]; the interrupt
-    /// side follows within two task periods).
+    /// side follows at the step after the task's next run, within a task period).
     pub fn start(&mut self) {
         self.task.start();
     }
@@ -189,8 +189,8 @@ impl Drive {
         self.task.stop();
     }
 
-    /// Leaves a fault for `Idle` ([`DriveTask::clear_fault`]; the outputs follow at the end
-    /// of the next task period); does nothing in other states.
+    /// Leaves a fault for `Idle` ([`DriveTask::clear_fault`]; the interrupt side follows at
+    /// the step after the task's next run); does nothing in other states.
     pub fn clear_fault(&mut self) {
         // A trip of the interrupt side the task has not seen yet (it would at the end of
         // this task period): taken now, on this one thread.

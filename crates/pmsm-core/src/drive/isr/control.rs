@@ -105,7 +105,7 @@ impl DriveIsr {
     /// [`DriveIsr::control`]'s linear modulation of `v_ref` with the dead-time compensation
     /// `v_dt`; the estimator is given the modulated vector less the dead-time error.
     #[inline(always)]
-    pub(super) fn modulate(&mut self, v_ref: AlphaBeta, vdc: Pu, v_dt: AlphaBeta) -> SvpwmOutput {
+    fn modulate(&mut self, v_ref: AlphaBeta, vdc: Pu, v_dt: AlphaBeta) -> SvpwmOutput {
         let c = &self.config;
         let m = c
             .svpwm
@@ -124,7 +124,7 @@ impl DriveIsr {
     #[cfg(feature = "overmodulation")]
     #[cold]
     #[inline(never)]
-    pub(super) fn overmodulate(
+    fn overmodulate(
         &mut self,
         input: &DriveInput,
         v_ref: AlphaBeta,
@@ -161,13 +161,7 @@ impl DriveIsr {
     /// in the setpoint's frame), turned to the mid-period angle `sc_mid` (docs/drive.md,
     /// "dead-time compensation: which current's sign").
     #[inline(always)]
-    pub(super) fn deadtime_vector(
-        &mut self,
-        vdc: Pu,
-        i_dq: Dq,
-        i_ref: Dq,
-        sc_mid: SinCos,
-    ) -> AlphaBeta {
+    fn deadtime_vector(&mut self, vdc: Pu, i_dq: Dq, i_ref: Dq, sc_mid: SinCos) -> AlphaBeta {
         // The current the loop will carry, not the reference itself: the q reference
         // through the closed current loop's lag. The d reference moves slowly: taken as it is.
         self.i_q_expected = follow(self.i_q_expected, i_ref.q, self.config.deadtime_lag_shift);

@@ -31,7 +31,7 @@ impl DriveIsr {
     }
 
     /// What the task sees of the period that ends.
-    pub(super) fn window(&self) -> Window {
+    fn window(&self) -> Window {
         let t = &self.telemetry;
         Window {
             epoch: self.epoch,
@@ -88,7 +88,7 @@ impl DriveIsr {
     }
 
     /// Applies the task's `command`.
-    pub(super) fn apply(&mut self, handoff: &Handoff, command: &Command) {
+    fn apply(&mut self, handoff: &Handoff, command: &Command) {
         if command.model != self.model {
             let (seq, m) = handoff.model.read_now::<ModelUpdate>();
             if seq == command.model {
@@ -113,7 +113,7 @@ impl DriveIsr {
     }
 
     /// The task's learners' model.
-    pub(super) fn set_model(&mut self, m: &ModelUpdate) {
+    fn set_model(&mut self, m: &ModelUpdate) {
         #[allow(irrefutable_let_patterns)]
         #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
         if let (AnyEstimator::MrasCurrent(e), Some(model)) = (&mut self.estimator, &m.mras) {
@@ -125,7 +125,7 @@ impl DriveIsr {
     }
 
     /// Enters the mode the task asks for.
-    pub(super) fn enter(&mut self, mode: Mode) {
+    fn enter(&mut self, mode: Mode) {
         match mode {
             Mode::Off => self.phase = Phase::Off,
             Mode::Fault(f) => {
@@ -176,7 +176,7 @@ impl DriveIsr {
     }
 
     /// A start: the loops, the voltages and the sums afresh.
-    pub(super) fn restart(&mut self) {
+    fn restart(&mut self) {
         self.current.reset();
         self.v_est = AlphaBeta::default();
         self.v_line = Default::default();
@@ -185,7 +185,7 @@ impl DriveIsr {
     }
 
     /// The rotor stands at `theta`: the estimator and the current loops start there.
-    pub(super) fn rotor_at(&mut self, theta: Angle) {
+    fn rotor_at(&mut self, theta: Angle) {
         self.estimator.reset(theta, Pu::ZERO);
         self.current.reset();
         self.i_q_expected = Pu::ZERO;

@@ -33,7 +33,7 @@ impl DriveTask {
         }
     }
 
-    pub(super) fn start_calibration(&mut self, theta: Angle, reset: bool) {
+    fn start_calibration(&mut self, theta: Angle, reset: bool) {
         self.calibration = Calibration::default();
         self.i_ref = Dq {
             d: self.calibration.reference(&self.config.calibration),
