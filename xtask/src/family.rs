@@ -10,16 +10,19 @@
 //! off its reference with no fault). `--check` fails unless the bars of [`check`] hold;
 //! `--write` replaces the `## Random motor family` section of docs/PERFORMANCE.md.
 
+mod draw;
+mod report;
+
+use crate::progress;
 use anyhow::{Result, bail};
+use indicatif::ProgressBar;
 use pmsm_cli::commands::simulate::stats::first_fault;
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_cli::scenario_file;
 use pmsm_core::DriveState;
-use pmsm_tests::signals::SplitMix;
-use std::f64::consts::{SQRT_2, TAU};
+use rayon::prelude::*;
+use std::f64::consts::SQRT_2;
 use std::fmt::Write as _;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Motors of the full table (docs/PERFORMANCE.md) and its seed.
 pub const DOC_MOTORS: usize = 40;
@@ -29,198 +32,8 @@ pub const DEFAULT_SEED: u64 = 1;
 const CI_MOTORS: usize = 6;
 const CI_SEED: u64 = 2;
 
-/// The proportions the family is drawn with (printed with the table).
-const PROPORTIONS: &str = "\
-- Bus classes (equally likely): 12 V (rated 3000–10000 r/min, 20–150 W, PWM 20–40 kHz, dead time 0.2–0.4 µs), \
-24 V (2000–8000 r/min, 50–400 W, 20–40 kHz, 0.3–0.5 µs), 48 V (1500–6000 r/min, 0.2–2 kW, 16–32 kHz, 0.3–1 µs), \
-320 V (1000–6000 r/min, 0.4–4 kW, 10–20 kHz, 1–2 µs), 540 V (1000–4000 r/min, 0.75–7.5 kW, 8–16 kHz, 1.5–3 µs); \
-power log-uniform, the rest uniform; pole pairs 2–7.
-- EMF at rated speed `ω_e ψ` = 55–90 % of the phase voltage limit `V_DC/√3` (gives ψ).
-- Rated torque = power / rated speed; rated peak current `I = T/(1.5 p ψ)` (the file's `rated_current_a` is `I/√2`).
-- Copper loss at rated current `1.5 R I²` = 4–15 % of the rated power (gives R).
-- Armature reaction `L_d I/ψ` = 0.15–0.5 (gives L_d); half the motors surface (`L_q = L_d`), half interior with `L_q/L_d` = 1.1–2.5. \
-The electrical time constant `L_d/R` follows; its range over the family is given below.
-- Mechanical time constant (rest to rated speed at rated torque) `J ω_m/T` = 30–300 ms, log-uniform (gives J); \
-friction `B ω_m` = 0.5–3 % of the rated torque.
-- PWM drawn in the class's range, raised to at least 30 samples per electrical period at rated speed and to a \
-full-voltage current step `V_DC T/(√3 L_d)` of at most half the rated peak current per period (the ripple a designer \
-accepts); a motor that would need more than the class's highest PWM frequency is drawn again.
-- Plant: linear magnetics but for the default d-axis saturation the scenario files give every motor, the \
-switching-level inverter with the dead time, 12-bit current ADC; initial rotor angle uniform.";
-
-/// A bus-voltage class: bus V, rated r/min, power W, PWM Hz, dead time s (each a range).
-struct Class {
-    vdc_v: f64,
-    rpm: (f64, f64),
-    power_w: (f64, f64),
-    pwm_hz: (f64, f64),
-    dead_time_s: (f64, f64),
-}
-
-const CLASSES: [Class; 5] = [
-    Class {
-        vdc_v: 12.0,
-        rpm: (3000.0, 10000.0),
-        power_w: (20.0, 150.0),
-        pwm_hz: (20e3, 40e3),
-        dead_time_s: (0.2e-6, 0.4e-6),
-    },
-    Class {
-        vdc_v: 24.0,
-        rpm: (2000.0, 8000.0),
-        power_w: (50.0, 400.0),
-        pwm_hz: (20e3, 40e3),
-        dead_time_s: (0.3e-6, 0.5e-6),
-    },
-    Class {
-        vdc_v: 48.0,
-        rpm: (1500.0, 6000.0),
-        power_w: (200.0, 2000.0),
-        pwm_hz: (16e3, 32e3),
-        dead_time_s: (0.3e-6, 1e-6),
-    },
-    Class {
-        vdc_v: 320.0,
-        rpm: (1000.0, 6000.0),
-        power_w: (400.0, 4000.0),
-        pwm_hz: (10e3, 20e3),
-        dead_time_s: (1e-6, 2e-6),
-    },
-    Class {
-        vdc_v: 540.0,
-        rpm: (1000.0, 4000.0),
-        power_w: (750.0, 7500.0),
-        pwm_hz: (8e3, 16e3),
-        dead_time_s: (1.5e-6, 3e-6),
-    },
-];
-
-/// One motor of the family with its inverter.
-#[derive(Clone, Debug)]
-pub struct Motor {
-    /// Index in the family.
-    pub index: usize,
-    pub vdc_v: f64,
-    pub pole_pairs: u32,
-    pub rated_rpm: f64,
-    pub power_w: f64,
-    pub rs_ohm: f64,
-    pub ld_h: f64,
-    pub lq_h: f64,
-    pub flux_wb: f64,
-    pub j_kg_m2: f64,
-    pub b_nm_s: f64,
-    /// Rated peak current, A.
-    pub rated_peak_a: f64,
-    pub rated_nm: f64,
-    pub pwm_hz: f64,
-    pub dead_time_s: f64,
-    /// Initial electrical angle, degrees.
-    pub theta0_deg: f64,
-    /// Surface magnets (`L_q = L_d`).
-    pub surface: bool,
-}
-
-impl Motor {
-    fn surface(&self) -> bool {
-        self.surface
-    }
-
-    /// Electrical time constant `L_d/R`, s.
-    fn tau_e_s(&self) -> f64 {
-        self.ld_h / self.rs_ohm
-    }
-
-    /// Rest to rated speed at rated torque, s.
-    fn tau_m_s(&self) -> f64 {
-        self.j_kg_m2 * self.rated_rpm * TAU / 60.0 / self.rated_nm
-    }
-
-    /// A short description for the lists.
-    pub fn describe(&self) -> String {
-        format!(
-            "#{} {:.0} V {}, p={}, {:.0} r/min, {:.0} W, L_q/L_d {:.2}, τ_e {:.2} ms, τ_m {:.0} ms, {:.0} kHz",
-            self.index,
-            self.vdc_v,
-            if self.surface() {
-                "surface"
-            } else {
-                "interior"
-            },
-            self.pole_pairs,
-            self.rated_rpm,
-            self.power_w,
-            self.lq_h / self.ld_h,
-            1e3 * self.tau_e_s(),
-            1e3 * self.tau_m_s(),
-            self.pwm_hz / 1e3
-        )
-    }
-}
-
-/// Draws motor `index` (with redraws, counted in `redrawn`) from `rng`.
-fn draw(rng: &mut SplitMix, index: usize, redrawn: &mut usize) -> Motor {
-    loop {
-        let class = &CLASSES[(rng.uniform(0.0, CLASSES.len() as f64) as usize).min(4)];
-        let p = (rng.uniform(2.0, 8.0) as u32).min(7);
-        let rated_rpm = rng.uniform(class.rpm.0, class.rpm.1).round();
-        let power_w = log_uniform(rng, class.power_w);
-        let w_m = rated_rpm * TAU / 60.0;
-        let w_e = w_m * p as f64;
-        let v_ph = class.vdc_v / 3f64.sqrt();
-        let flux_wb = rng.uniform(0.55, 0.9) * v_ph / w_e;
-        let rated_nm = power_w / w_m;
-        let i_pk = rated_nm / (1.5 * p as f64 * flux_wb);
-        let rs_ohm = rng.uniform(0.04, 0.15) * power_w / (1.5 * i_pk * i_pk);
-        let ld_h = rng.uniform(0.15, 0.5) * flux_wb / i_pk;
-        let surface = rng.uniform(0.0, 1.0) < 0.5;
-        let ratio = if surface { 1.0 } else { rng.uniform(1.1, 2.5) };
-        let j_kg_m2 = log_uniform(rng, (0.03, 0.3)) * rated_nm / w_m;
-        let b_nm_s = rng.uniform(0.005, 0.03) * rated_nm / w_m;
-        let pwm_drawn = rng.uniform(class.pwm_hz.0, class.pwm_hz.1);
-        let dead_time_s = rng.uniform(class.dead_time_s.0, class.dead_time_s.1);
-        let theta0_deg = rng.uniform(0.0, 360.0);
-        // At least 30 samples per electrical period, and a full-voltage step of at most half
-        // the rated current per period.
-        let pwm_needed = (30.0 * w_e / TAU).max(2.0 * v_ph / (ld_h * i_pk));
-        let pwm_hz = (pwm_drawn.max(pwm_needed) / 1e3).ceil() * 1e3;
-        if pwm_hz > class.pwm_hz.1 {
-            *redrawn += 1;
-            continue;
-        }
-        return Motor {
-            index,
-            vdc_v: class.vdc_v,
-            pole_pairs: p,
-            rated_rpm,
-            power_w,
-            rs_ohm,
-            ld_h,
-            lq_h: ratio * ld_h,
-            flux_wb,
-            j_kg_m2,
-            b_nm_s,
-            rated_peak_a: i_pk,
-            rated_nm,
-            pwm_hz,
-            dead_time_s: (dead_time_s * 1e8).round() / 1e8,
-            theta0_deg,
-            surface,
-        };
-    }
-}
-
-fn log_uniform(rng: &mut SplitMix, (lo, hi): (f64, f64)) -> f64 {
-    (rng.uniform(lo.ln(), hi.ln())).exp()
-}
-
-/// The family of `n` motors from `seed`, and how many draws were redrawn.
-pub fn family(n: usize, seed: u64) -> (Vec<Motor>, usize) {
-    let mut rng = SplitMix(seed);
-    let mut redrawn = 0;
-    let motors = (0..n).map(|k| draw(&mut rng, k, &mut redrawn)).collect();
-    (motors, redrawn)
-}
+pub use draw::{Motor, PROPORTIONS, family};
+pub use report::{Tally, check, label, report, tally};
 
 /// The estimators the family runs: the current-model MRAS on every motor, the back-EMF
 /// estimators of Solsona, Valla, Muravchik (2000) on surface motors.
@@ -443,17 +256,10 @@ pub struct RunResult {
     pub outcome: Outcome,
 }
 
-/// Runs every applicable estimator of `estimators` on every motor of the family drawn with
-/// `seed`, `threads` at a time, with the `key = value` lines of `control` in every run's
-/// `[control]`.
-pub fn run_all(
-    motors: &[Motor],
-    seed: u64,
-    estimators: &[&'static str],
-    threads: usize,
-    control: &[String],
-) -> Result<Vec<RunResult>> {
-    let jobs: Vec<(usize, &'static str)> = motors
+/// The runs of the family: every applicable estimator of `estimators` on every motor, by
+/// motor, then in the order of `estimators`.
+pub fn jobs(motors: &[Motor], estimators: &[&'static str]) -> Vec<(usize, &'static str)> {
+    motors
         .iter()
         .flat_map(|m| {
             estimators
@@ -461,47 +267,58 @@ pub fn run_all(
                 .filter(|e| applies(e, m))
                 .map(move |e| (m.index, *e))
         })
-        .collect();
+        .collect()
+}
+
+/// Runs the [`jobs`] of the family drawn with `seed` over all cores, with the `key = value`
+/// lines of `control` in every run's `[control]`; `bar` advances by one per run. The results
+/// are by motor, then in the order of [`ESTIMATORS`], whichever run ends first.
+pub fn run_all(
+    motors: &[Motor],
+    seed: u64,
+    estimators: &[&'static str],
+    control: &[String],
+    bar: &ProgressBar,
+) -> Result<Vec<RunResult>> {
+    let jobs = jobs(motors, estimators);
     // One directory per seed: a seed whose runs all hold removes its own, not another's.
     let dir = std::env::temp_dir().join(format!("pmsm-family-{}-seed{seed}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    let next = AtomicUsize::new(0);
-    let results = Mutex::new(Vec::new());
-    let errors = Mutex::new(Vec::new());
-    std::thread::scope(|s| {
-        for _ in 0..threads.max(1) {
-            s.spawn(|| {
-                loop {
-                    let k = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(&(mi, est)) = jobs.get(k) else { break };
-                    let m = &motors[mi];
-                    match run_one(m, est, &dir.join(format!("m{mi}-{est}.toml")), control) {
-                        Ok(outcome) => results.lock().unwrap().push(RunResult {
-                            motor: mi,
-                            estimator: est,
-                            outcome,
-                        }),
-                        Err(e) => errors
-                            .lock()
-                            .unwrap()
-                            .push(format!("{} {est}: {e:#}", m.describe())),
-                    }
-                }
-            });
+    let outcomes: Vec<Result<Outcome>> = jobs
+        .par_iter()
+        .map(|&(mi, est)| {
+            let outcome = run_one(
+                &motors[mi],
+                est,
+                &dir.join(format!("m{mi}-{est}.toml")),
+                control,
+            );
+            bar.inc(1);
+            outcome
+        })
+        .collect();
+    let mut results = Vec::new();
+    let mut errors = Vec::new();
+    for (&(mi, est), outcome) in jobs.iter().zip(outcomes) {
+        match outcome {
+            Ok(outcome) => results.push(RunResult {
+                motor: mi,
+                estimator: est,
+                outcome,
+            }),
+            Err(e) => errors.push(format!("{} {est}: {e:#}", motors[mi].describe())),
         }
-    });
-    let errors = errors.into_inner().unwrap();
+    }
     if !errors.is_empty() {
         bail!("runs that could not be built:\n{}", errors.join("\n"));
     }
-    let mut results = results.into_inner().unwrap();
     if results.iter().all(|r| r.outcome == Outcome::Holds) {
         std::fs::remove_dir_all(&dir).ok();
     } else {
-        eprintln!(
+        progress::eprintln(format_args!(
             "the scenarios of the runs that did not hold: {}",
             dir.display()
-        );
+        ));
     }
     results.sort_by_key(|r| {
         (
@@ -535,167 +352,6 @@ fn run_one(
     Ok(outcome)
 }
 
-/// Counts of one estimator's runs: holds, faults by name, out of the bars, silent.
-#[derive(Default)]
-pub struct Tally {
-    pub runs: usize,
-    pub holds: usize,
-    pub faults: Vec<(&'static str, usize)>,
-    pub out_of_bars: usize,
-    pub silent: usize,
-}
-
-impl Tally {
-    /// Adds another tally's counts (the faults merged by name, sorted).
-    pub fn add(&mut self, t: &Tally) {
-        self.runs += t.runs;
-        self.holds += t.holds;
-        self.out_of_bars += t.out_of_bars;
-        self.silent += t.silent;
-        for &(name, k) in &t.faults {
-            match self.faults.iter_mut().find(|f| f.0 == name) {
-                Some(f) => f.1 += k,
-                None => self.faults.push((name, k)),
-            }
-        }
-        self.faults.sort();
-    }
-}
-
-pub fn tally(results: &[RunResult], estimator: &str) -> Tally {
-    let mut t = Tally::default();
-    for r in results.iter().filter(|r| r.estimator == estimator) {
-        t.runs += 1;
-        match &r.outcome {
-            Outcome::Holds => t.holds += 1,
-            Outcome::Fault(name, ..) => match t.faults.iter_mut().find(|f| f.0 == *name) {
-                Some(f) => f.1 += 1,
-                None => t.faults.push((name, 1)),
-            },
-            Outcome::OutOfBars(..) => t.out_of_bars += 1,
-            Outcome::Silent(..) => t.silent += 1,
-        }
-    }
-    t.faults.sort();
-    t
-}
-
-/// An estimator's row label in the tables: its name and the motors it runs on.
-pub fn label(estimator: &str) -> String {
-    if estimator == "mras-current" {
-        format!("{estimator} (all motors)")
-    } else {
-        format!("{estimator} (surface motors)")
-    }
-}
-
-fn pct(k: usize, n: usize) -> String {
-    if n == 0 {
-        "–".into()
-    } else {
-        format!("{k} ({:.0} %)", 100.0 * k as f64 / n as f64)
-    }
-}
-
-/// The table per estimator of `estimators` and the list of runs that did not hold, Markdown.
-pub fn report(
-    motors: &[Motor],
-    estimators: &[&'static str],
-    redrawn: usize,
-    seed: u64,
-    results: &[RunResult],
-) -> String {
-    let mut s = String::new();
-    let surface = motors.iter().filter(|m| m.surface()).count();
-    let tau_e = motors.iter().map(Motor::tau_e_s);
-    let (e_lo, e_hi) = tau_e.fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(x), b.max(x)));
-    let _ = writeln!(
-        s,
-        "{} motors (seed {seed}; {surface} surface, {} interior; {redrawn} draws beyond their class's PWM range drawn again), \
-         electrical time constants {:.2}–{:.1} ms.\n",
-        motors.len(),
-        motors.len() - surface,
-        1e3 * e_lo,
-        1e3 * e_hi
-    );
-    s.push_str(
-        "| estimator | runs | holds | named fault | out of the bars, no fault | silent |\n|---|---:|---:|---|---:|---:|\n",
-    );
-    for &est in estimators {
-        let t = tally(results, est);
-        let faults = if t.faults.is_empty() {
-            "0".to_string()
-        } else {
-            t.faults
-                .iter()
-                .map(|(n, k)| format!("{n} {}", pct(*k, t.runs)))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {faults} | {} | {} |",
-            label(est),
-            t.runs,
-            pct(t.holds, t.runs),
-            pct(t.out_of_bars, t.runs),
-            pct(t.silent, t.runs),
-        );
-    }
-    let failed: Vec<&RunResult> = results
-        .iter()
-        .filter(|r| r.outcome != Outcome::Holds)
-        .collect();
-    if failed.is_empty() {
-        s.push_str("\nEvery run holds.\n");
-    } else {
-        s.push_str("\nRuns that do not hold:\n\n");
-        for r in failed {
-            let what = match &r.outcome {
-                Outcome::Holds => String::new(),
-                Outcome::Fault(name, t, phase) => format!("`{name}` at {t:.3} s ({phase})"),
-                Outcome::OutOfBars(w, sp, a) => format!(
-                    "out of the bars, {w}: speed error {:.1} % of rated, angle error {a:.3} rad rms",
-                    100.0 * sp
-                ),
-                Outcome::Silent(t, phase) => {
-                    format!("**silent** from {t:.3} s ({phase})")
-                }
-            };
-            let _ = writeln!(
-                s,
-                "- {}, {}: {what}",
-                r.estimator,
-                motors[r.motor].describe()
-            );
-        }
-    }
-    s
-}
-
-/// The bars: at least 90 % of the runs hold with the current-model MRAS and with the NLO, no
-/// run is silent. The failures, one line each.
-pub fn check(results: &[RunResult]) -> Vec<String> {
-    let mut bad = Vec::new();
-    for est in ["mras-current", "nlo"] {
-        let t = tally(results, est);
-        if t.runs > 0 && (t.holds as f64) < 0.9 * t.runs as f64 {
-            bad.push(format!(
-                "{est}: {} of {} runs hold, below 90 %",
-                t.holds, t.runs
-            ));
-        }
-    }
-    let silent = results
-        .iter()
-        .filter(|r| matches!(r.outcome, Outcome::Silent(..)))
-        .count();
-    if silent > 0 {
-        bad.push(format!("{silent} silent runs"));
-    }
-    bad
-}
-
 /// The section of docs/PERFORMANCE.md from `n` motors drawn with `seed`, and the bars it
 /// misses ([`check`]); `control` holds `key = value` lines added to every run's `[control]`
 /// (none for the documented table: the drive's defaults); `estimators` those to run (all of
@@ -707,9 +363,14 @@ pub fn section(
     control: &[String],
 ) -> Result<(String, Vec<String>)> {
     let (motors, redrawn) = family(n, seed);
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = rayon::current_num_threads();
     let started = std::time::Instant::now();
-    let results = run_all(&motors, seed, estimators, threads, control)?;
+    let bar = progress::bar(
+        jobs(&motors, estimators).len(),
+        format!("family {n} --seed {seed}"),
+    );
+    let results = run_all(&motors, seed, estimators, control, &bar)?;
+    drop(bar);
     let wall = started.elapsed().as_secs_f64();
     let mut s = String::from(SECTION_TITLE);
     let _ = write!(
@@ -863,46 +524,6 @@ pub fn main(args: &[String]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_family_has_the_documented_proportions() {
-        let (motors, _) = family(200, DEFAULT_SEED);
-        for m in &motors {
-            let w_m = m.rated_rpm * TAU / 60.0;
-            let w_e = w_m * m.pole_pairs as f64;
-            let emf = w_e * m.flux_wb / (m.vdc_v / 3f64.sqrt());
-            let cu = 1.5 * m.rs_ohm * m.rated_peak_a.powi(2) / m.power_w;
-            let x_d = m.ld_h * m.rated_peak_a / m.flux_wb;
-            let tau_m = m.tau_m_s();
-            let class = CLASSES
-                .iter()
-                .find(|c| (c.vdc_v - m.vdc_v).abs() < 1e-9)
-                .unwrap();
-            assert!((0.55..0.9).contains(&emf), "{}: EMF {emf}", m.describe());
-            assert!((0.04..0.15).contains(&cu), "{}: copper {cu}", m.describe());
-            assert!(
-                (0.15..0.5).contains(&x_d),
-                "{}: L_d I/ψ {x_d}",
-                m.describe()
-            );
-            assert!((0.03..0.3).contains(&tau_m), "{}", m.describe());
-            assert!((1.0..=2.5).contains(&(m.lq_h / m.ld_h)), "{}", m.describe());
-            assert!((2..=7).contains(&m.pole_pairs));
-            assert!(m.pwm_hz <= class.pwm_hz.1 && m.pwm_hz >= class.pwm_hz.0);
-            assert!(m.pwm_hz >= 30.0 * w_e / TAU, "{}", m.describe());
-            let step = m.vdc_v / 3f64.sqrt() / (m.ld_h * m.pwm_hz);
-            assert!(step <= 0.5 * m.rated_peak_a * 1.0001, "{}", m.describe());
-        }
-        // Both kinds and every class are drawn.
-        assert!(motors.iter().any(|m| m.surface) && motors.iter().any(|m| !m.surface));
-        for c in &CLASSES {
-            assert!(
-                motors.iter().any(|m| (m.vdc_v - c.vdc_v).abs() < 1e-9),
-                "{} V",
-                c.vdc_v
-            );
-        }
-    }
 
     #[test]
     fn control_keys_reach_every_runs_scenario() {

@@ -7,7 +7,9 @@
 //! cores).
 
 use crate::family::{self, ESTIMATORS, Outcome, RunResult, tally};
+use crate::progress;
 use anyhow::Result;
+use rayon::prelude::*;
 use std::fmt::Write as _;
 
 /// The section's title (`--write` finds it there).
@@ -29,14 +31,32 @@ fn share(k: usize, n: usize) -> String {
     }
 }
 
-/// Runs `n` motors of every seed in `seeds` with every estimator; the section.
+/// Runs `n` motors of every seed in `seeds` with every estimator; the section. The runs of
+/// all seeds share the cores; each seed's results are those it gets alone.
 pub fn section(n: usize, seeds: std::ops::RangeInclusive<u64>) -> Result<String> {
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = rayon::current_num_threads();
     let started = std::time::Instant::now();
+    let draws: Vec<(u64, Vec<family::Motor>)> = seeds
+        .clone()
+        .map(|seed| (seed, family::family(n, seed).0))
+        .collect();
+    let bar = progress::bar(
+        draws
+            .iter()
+            .map(|(_, motors)| family::jobs(motors, &ESTIMATORS).len())
+            .sum(),
+        format!("family {n} --seeds {}-{}", seeds.start(), seeds.end()),
+    );
+    let ran = draws
+        .into_par_iter()
+        .map(|(seed, motors)| {
+            let results = family::run_all(&motors, seed, &ESTIMATORS, &[], &bar)?;
+            Ok((seed, motors, results))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    drop(bar);
     let mut runs = Vec::new();
-    for seed in seeds.clone() {
-        let (motors, _) = family::family(n, seed);
-        let results = family::run_all(&motors, seed, &ESTIMATORS, threads, &[])?;
+    for (seed, motors, results) in ran {
         for r in results.iter().filter(|r| r.outcome != Outcome::Holds) {
             eprintln!(
                 "seed {seed}: {}, {}: {:?}",

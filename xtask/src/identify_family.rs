@@ -4,10 +4,12 @@
 //! the worst against the bars R 3 %, L 5 %, ψ 3 %, J 15 %. Exit status 1 when a bar is missed.
 
 use crate::family::{Motor, family};
+use crate::progress;
 use anyhow::{Result, bail};
 use pmsm_cli::commands::identify::{BARS, errors, identify};
 use pmsm_core::{InverterParams, MotorParams};
 use pmsm_plant::{InverterKind, MotorModel, Saturation};
+use rayon::prelude::*;
 
 /// The errors of one motor's identification, or why it failed.
 fn one(m: &Motor) -> Result<[f64; 6]> {
@@ -57,11 +59,21 @@ pub fn main(args: &[String]) -> Result<()> {
         }
     }
     let (motors, _) = family(n, seed);
+    let bar = progress::bar(n, format!("identify-family {n} --seed {seed}"));
+    let identified: Vec<Result<[f64; 6]>> = motors
+        .par_iter()
+        .map(|m| {
+            let e = one(m);
+            bar.inc(1);
+            e
+        })
+        .collect();
+    drop(bar);
     println!("| motor | R % | L_d % | L_q % | ψ % | J % | B % |\n|---|---|---|---|---|---|---|");
     let mut worst = [0.0f64; 5];
     let mut missed = Vec::new();
-    for m in &motors {
-        match one(m) {
+    for (m, e) in motors.iter().zip(identified) {
+        match e {
             Ok(e) => {
                 println!(
                     "| {} | {:+.2} | {:+.2} | {:+.2} | {:+.2} | {:+.2} | {:+.1} |",

@@ -5,10 +5,12 @@
 //! docs/PERFORMANCE.md and the before/after figures docs/figures/no-load-motor-b.svg and
 //! docs/figures/low-speed-motor-b.svg.
 
+use crate::progress;
 use anyhow::{Result, bail};
 use pmsm_cli::commands::simulate::stats::{self, rms_angle, std_dev, window};
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_cli::{plot, scenario_file};
+use rayon::prelude::*;
 use std::path::Path;
 
 /// One run: the inverter the plant has, what the drive is told, the light-load current.
@@ -161,8 +163,9 @@ fn scenario_text(case: &Case, motor: &Path) -> String {
     s
 }
 
-fn run_case(case: &Case) -> Result<(Vec<Row>, f64)> {
-    let dir = std::env::temp_dir().join(format!("pmsm-light-load-{}", std::process::id()));
+/// Runs case `k` in a directory of its own (the cases run at the same time).
+fn run_case(k: usize, case: &Case) -> Result<(Vec<Row>, f64)> {
+    let dir = std::env::temp_dir().join(format!("pmsm-light-load-{}-{k}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let motor = super::root().join("examples/motor-b.toml");
     let path = dir.join("case.toml");
@@ -208,10 +211,20 @@ pub fn section(figure: Option<&Path>) -> Result<String> {
          | run | V_dead learned | no load: est. speed σ | true speed σ | largest \\|n − n*\\| | i_q* σ | angle rms | rated load: angle rms | fault |\n\
          |---|---|---|---|---|---|---|---|---|\n",
     );
+    let bar = progress::bar(CASES.len(), "light load");
+    let runs = CASES
+        .par_iter()
+        .enumerate()
+        .map(|(k, case)| {
+            progress::eprintln(format_args!("  light load: {}", case.label));
+            let run = run_case(k, case);
+            bar.inc(1);
+            run
+        })
+        .collect::<Result<Vec<_>>>()?;
+    drop(bar);
     let mut before_after: Vec<Vec<Row>> = Vec::new();
-    for (k, case) in CASES.iter().enumerate() {
-        eprintln!("  light load: {}", case.label);
-        let (rows, scale) = run_case(case)?;
+    for (k, (case, (rows, scale))) in CASES.iter().zip(runs).enumerate() {
         let f = figures(&window(&rows, case.no_load.0, case.no_load.1));
         let loaded = case
             .loaded

@@ -30,10 +30,12 @@ mod map;
 mod observers_motor_a;
 mod pil;
 mod plant_speed;
+mod progress;
 mod robustness;
 mod sweep;
 
 use anyhow::{Result, bail};
+use rayon::prelude::*;
 use std::path::PathBuf;
 
 fn root() -> PathBuf {
@@ -75,8 +77,17 @@ fn main() -> Result<()> {
                     } else {
                         "switching"
                     };
-                    for tracking in [false, true] {
-                        let (o, last) = robustness::heating(inverter, tracking)?;
+                    let bar = progress::bar(2, format!("robustness: heating, {inverter}"));
+                    let runs = [false, true]
+                        .into_par_iter()
+                        .map(|tracking| {
+                            let run = robustness::heating(inverter, tracking);
+                            bar.inc(1);
+                            run
+                        })
+                        .collect::<Result<Vec<_>>>()?;
+                    drop(bar);
+                    for (tracking, (o, last)) in [false, true].into_iter().zip(runs) {
                         println!(
                             "heating, {inverter}, tracking {tracking}: {} R̂ {:.3} ψ̂ {:.4}",
                             o.cell(),
@@ -110,6 +121,10 @@ fn main() -> Result<()> {
     }
 }
 
+/// A stage of `cargo xtask perf`: what it measures (none for a section kept as it is) and its
+/// section.
+type Stage = (&'static str, fn() -> Result<String>);
+
 fn perf() -> Result<()> {
     let mut doc = String::new();
     doc.push_str(
@@ -117,39 +132,56 @@ fn perf() -> Result<()> {
          Regenerate with `cargo xtask perf` (release build, a few minutes on 2 cores). \
          Every figure below is measured by that command; none is typed by hand.\n\n",
     );
-    eprintln!("measuring the accuracy of the fixed-point numerics ...");
-    doc.push_str(&accuracy::section());
-    eprintln!("running the estimators of Solsona, Valla, Muravchik (2000) ...");
-    doc.push_str(&observers_motor_a::section());
-    eprintln!("running the drive of Khlaief, Boussak, Gossa (2012) ...");
-    doc.push_str(&drive_motor_b::section()?);
-    eprintln!("motor B at light load ...");
-    doc.push_str(&light_load::section(Some(&root().join("docs/figures")))?);
-    eprintln!("robustness to parameter errors ...");
-    doc.push_str(&robustness::section()?);
-    // The operating map is `cargo xtask map`'s (a minute more): kept as it is.
-    doc.push_str(&map::kept_section());
-    eprintln!("the drive on a random family of motors ...");
-    doc.push_str(
-        &family::section(
-            family::DOC_MOTORS,
-            family::DEFAULT_SEED,
-            &family::ESTIMATORS,
-            &[],
-        )?
-        .0,
-    );
-    // The family on many seeds is `cargo xtask family 40 --seeds 1-30`'s (a quarter of an
-    // hour): kept as it is.
-    doc.push_str(&family_seeds::kept_section());
-    eprintln!("counting instructions in QEMU (scripts/pil.sh) ...");
-    doc.push_str(&pil::section());
-    eprintln!("measuring the board firmware (scripts/firmware-size.sh) ...");
-    doc.push_str(&board::section());
-    eprintln!("measuring the C library (scripts/c-firmware.sh) ...");
-    doc.push_str(&cffi::section());
-    eprintln!("measuring the speed of the plant model ...");
-    doc.push_str(&plant_speed::section()?);
+    let stages: [Stage; 12] = [
+        ("measuring the accuracy of the fixed-point numerics", || {
+            Ok(accuracy::section())
+        }),
+        (
+            "running the estimators of Solsona, Valla, Muravchik (2000)",
+            || Ok(observers_motor_a::section()),
+        ),
+        (
+            "running the drive of Khlaief, Boussak, Gossa (2012)",
+            drive_motor_b::section,
+        ),
+        ("motor B at light load", || {
+            light_load::section(Some(&root().join("docs/figures")))
+        }),
+        ("robustness to parameter errors", robustness::section),
+        // The operating map is `cargo xtask map`'s (a minute more): kept as it is.
+        ("", || Ok(map::kept_section())),
+        ("the drive on a random family of motors", || {
+            let estimators = &family::ESTIMATORS;
+            Ok(family::section(family::DOC_MOTORS, family::DEFAULT_SEED, estimators, &[])?.0)
+        }),
+        // The family on many seeds is `cargo xtask family 40 --seeds 1-30`'s (a quarter of an
+        // hour): kept as it is.
+        ("", || Ok(family_seeds::kept_section())),
+        ("counting instructions in QEMU (scripts/pil.sh)", || {
+            Ok(pil::section())
+        }),
+        (
+            "measuring the board firmware (scripts/firmware-size.sh)",
+            || Ok(board::section()),
+        ),
+        ("measuring the C library (scripts/c-firmware.sh)", || {
+            Ok(cffi::section())
+        }),
+        (
+            "measuring the speed of the plant model",
+            plant_speed::section,
+        ),
+    ];
+    let bar = progress::bar(stages.len(), "perf");
+    for (what, section) in stages {
+        if !what.is_empty() {
+            progress::eprintln(format_args!("{what} ..."));
+            bar.set_message(format!("perf: {what}"));
+        }
+        doc.push_str(&section()?);
+        bar.inc(1);
+    }
+    drop(bar);
     let path = root().join("docs/PERFORMANCE.md");
     std::fs::write(&path, doc)?;
     eprintln!("wrote {}", path.display());

@@ -2,11 +2,13 @@
 //! ψ ±20 %, without and with the tracking of R and ψ (docs/tracking.md), and the heating run.
 //! `cargo xtask robustness R L PSI` runs one cell both ways and prints its details.
 
+use crate::progress;
 use anyhow::Result;
 use pmsm_cli::commands::simulate::run_scenario;
 use pmsm_cli::commands::simulate::stats::{rms_angle, speed_err, window};
 use pmsm_cli::commands::simulate::{Row, Run};
 use pmsm_cli::scenario_file;
+use rayon::prelude::*;
 
 /// Length of a robustness run, s; the lock is judged over its last 0.5 s.
 pub const DURATION_S: f64 = 3.5;
@@ -42,6 +44,8 @@ pub fn heating_text(inverter: &str, tracking: bool) -> Result<String> {
            flux_factor = [1.0, 1.0, 0.9]\n")
 }
 
+/// Runs the scenario `text` from a file named after `name` beside the shipped ones; runs at
+/// the same time need different names.
 fn run_text(name: &str, text: &str) -> Result<Run> {
     let path = super::root()
         .join("examples")
@@ -88,8 +92,8 @@ impl Outcome {
 
 /// One cell both ways: the outcomes and the tracked (R/R_model, ψ/ψ_model) at the end.
 pub fn cell(r: f64, l: f64, f: f64) -> Result<(Outcome, Outcome, [f64; 2])> {
-    let off = run_text("rob-off", &cell_text(r, l, f, false)?)?;
-    let on = run_text("rob-on", &cell_text(r, l, f, true)?)?;
+    let off = run_text(&format!("rob-{r}-{l}-{f}-off"), &cell_text(r, l, f, false)?)?;
+    let on = run_text(&format!("rob-{r}-{l}-{f}-on"), &cell_text(r, l, f, true)?)?;
     let last = on.rows.last().map_or([0.0; 2], |x| x.model_rs_flux);
     Ok((
         Outcome::of(&off.rows, DURATION_S),
@@ -131,7 +135,10 @@ pub fn one(r: f64, l: f64, f: f64) -> Result<()> {
 /// The heating run's figures: rms angle error and speed error over 9.5–10 s, and the tracked
 /// ψ against the plant's at the end (0.9 × 0.305 Wb).
 pub fn heating(inverter: &str, tracking: bool) -> Result<(Outcome, [f64; 2])> {
-    let run = run_text("heat", &heating_text(inverter, tracking)?)?;
+    let run = run_text(
+        &format!("heat-{inverter}-{tracking}"),
+        &heating_text(inverter, tracking)?,
+    )?;
     let last = run.rows.last().map_or([0.0; 2], |x| x.model_rs_flux);
     Ok((Outcome::of(&run.rows, 10.0), last))
 }
@@ -148,16 +155,57 @@ pub fn section() -> Result<String> {
          tracking, then with the tracking of R and ψ (docs/tracking.md).\n\n\
          | R | L | ψ −20 % | ψ 0 | ψ +20 % |\n|---|---|---|---|---|\n",
     );
+    const R: [f64; 3] = [0.5, 1.0, 1.5];
+    const L: [f64; 3] = [0.7, 1.0, 1.3];
+    const F: [f64; 3] = [0.8, 1.0, 1.2];
+    const HEATING: [(&str, bool); 4] = [
+        ("switching", false),
+        ("switching", true),
+        ("averaged", false),
+        ("averaged", true),
+    ];
+    let cells: Vec<(f64, f64, f64)> = R
+        .iter()
+        .flat_map(|&r| {
+            L.iter()
+                .flat_map(move |&l| F.iter().map(move |&f| (r, l, f)))
+        })
+        .collect();
+    let bar = progress::bar(cells.len() + HEATING.len(), "robustness");
+    // The cells and the heating runs share the cores; each keeps its place in the tables.
+    let (cells, heated) = rayon::join(
+        || {
+            cells
+                .par_iter()
+                .map(|&(r, l, f)| {
+                    let c = cell(r, l, f);
+                    bar.inc(1);
+                    c
+                })
+                .collect::<Result<Vec<_>>>()
+        },
+        || {
+            HEATING
+                .par_iter()
+                .map(|&(inverter, tracking)| {
+                    let h = heating(inverter, tracking);
+                    bar.inc(1);
+                    h
+                })
+                .collect::<Result<Vec<_>>>()
+        },
+    );
+    drop(bar);
+    let (mut cells, heated) = (cells?.into_iter(), heated?);
     let (mut held_off, mut held_on, mut total) = (0, 0, 0);
-    for r in [0.5, 1.0, 1.5] {
-        for l in [0.7, 1.0, 1.3] {
+    for r in R {
+        for l in L {
             let mut row = format!(
                 "| {:+.0} % | {:+.0} % |",
                 100.0 * (r - 1.0),
                 100.0 * (l - 1.0)
             );
-            for f in [0.8, 1.0, 1.2] {
-                let (off, on, _) = cell(r, l, f)?;
+            for (off, on, _) in cells.by_ref().take(F.len()) {
                 total += 1;
                 held_off += usize::from(off.held());
                 held_on += usize::from(on.held());
@@ -176,22 +224,19 @@ pub fn section() -> Result<String> {
          tracked values at the end (the plant's: 10.08 Ω, 0.2745 Wb).\n\n\
          | inverter | tracking | position error rms | speed error | R̂ | ψ̂ |\n|---|---|---|---|---|---|\n",
     );
-    for inverter in ["switching", "averaged"] {
-        for tracking in [false, true] {
-            let (o, last) = heating(inverter, tracking)?;
-            let (rms, speed) = match o {
-                Outcome::Ran { rms, speed } => {
-                    (format!("{rms:.4} rad"), format!("{:.3} %", 100.0 * speed))
-                }
-                Outcome::Fault(name, t) => (format!("{name} at {t:.2} s"), String::new()),
-            };
-            s.push_str(&format!(
-                "| {inverter} | {} | {rms} | {speed} | {:.3} Ω | {:.4} Wb |\n",
-                if tracking { "on" } else { "off" },
-                last[0],
-                last[1]
-            ));
-        }
+    for ((inverter, tracking), (o, last)) in HEATING.into_iter().zip(heated) {
+        let (rms, speed) = match o {
+            Outcome::Ran { rms, speed } => {
+                (format!("{rms:.4} rad"), format!("{:.3} %", 100.0 * speed))
+            }
+            Outcome::Fault(name, t) => (format!("{name} at {t:.2} s"), String::new()),
+        };
+        s.push_str(&format!(
+            "| {inverter} | {} | {rms} | {speed} | {:.3} Ω | {:.4} Wb |\n",
+            if tracking { "on" } else { "off" },
+            last[0],
+            last[1]
+        ));
     }
     s.push('\n');
     Ok(s)

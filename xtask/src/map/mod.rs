@@ -12,11 +12,14 @@ pub mod svg;
 
 pub use doc::kept_section;
 
+use crate::progress;
 use anyhow::{Context, Result, anyhow};
+use indicatif::ProgressBar;
 use pmsm_cli::commands::simulate::stats::first_fault;
 use pmsm_cli::commands::simulate::{Row, build_drive, run_scenario};
 use pmsm_cli::scenario_file::{self, Scenario};
 use pmsm_core::DriveState;
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 
 /// A motor of the map: its drive and its rated point.
@@ -300,6 +303,7 @@ fn scenario_at(
     theta_deg: f64,
 ) -> Result<(Scenario, Timing)> {
     use std::sync::atomic::{AtomicUsize, Ordering};
+    // A file name of its own for each scenario: the points run at the same time.
     static N: AtomicUsize = AtomicUsize::new(0);
     let ramp_s = (speed_rpm.abs() / case.accel_rpm_s).max(0.01);
     let t_ref = case.start_s + ramp_s;
@@ -455,8 +459,8 @@ pub fn run_point(case: &Case, speed_rpm: f64, load_nm: f64) -> Result<Point> {
     Ok(p)
 }
 
-/// Runs the grid of `case` on `threads` threads.
-pub fn run_grid(case: &Case, threads: usize) -> Result<Grid> {
+/// Runs the grid of `case` over all cores; `bar` advances by one per point.
+pub fn run_grid(case: &Case, bar: &ProgressBar) -> Result<Grid> {
     let (max_rpm, min_rpm) = speed_limits_rpm(case)?;
     let mut speeds_rpm: Vec<f64> = SPEEDS_PCT
         .iter()
@@ -465,43 +469,25 @@ pub fn run_grid(case: &Case, threads: usize) -> Result<Grid> {
     let mut speed_labels: Vec<String> = SPEEDS_PCT.iter().map(|p| format!("{p:.0} %")).collect();
     speeds_rpm.push((ABOVE_MAX * max_rpm).round());
     speed_labels.push(format!("{ABOVE_MAX}·n_max"));
-    let jobs: Vec<(usize, usize)> = (0..LOADS_PCT.len())
-        .flat_map(|l| (0..speeds_rpm.len()).map(move |s| (l, s)))
-        .collect();
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let results = std::sync::Mutex::new(Vec::new());
-    std::thread::scope(|scope| {
-        for _ in 0..threads.max(1) {
-            scope.spawn(|| {
-                loop {
-                    let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(&(l, s)) = jobs.get(k) else { break };
-                    let load_nm = LOADS_PCT[l] / 100.0 * case.rated_nm;
-                    let r = run_point(case, speeds_rpm[s], load_nm);
-                    if let Ok(mut v) = results.lock() {
-                        v.push((l, s, r));
-                    }
-                }
-            });
-        }
-    });
-    let mut points: Vec<Vec<Option<Point>>> = vec![vec![None; speeds_rpm.len()]; LOADS_PCT.len()];
-    let results = results
-        .into_inner()
-        .map_err(|_| anyhow!("a worker panicked"))?;
-    for (l, s, r) in results {
-        points[l][s] = Some(r.with_context(|| {
-            format!(
-                "motor {}, {} r/min, load {} %",
-                case.key, speeds_rpm[s], LOADS_PCT[l]
-            )
-        })?);
-    }
-    let points = points
-        .into_iter()
-        .map(|row| row.into_iter().collect::<Option<Vec<_>>>())
-        .collect::<Option<Vec<_>>>()
-        .ok_or_else(|| anyhow!("a point of motor {} did not run", case.key))?;
+    let points = (0..LOADS_PCT.len())
+        .into_par_iter()
+        .map(|l| {
+            let load_nm = LOADS_PCT[l] / 100.0 * case.rated_nm;
+            speeds_rpm
+                .par_iter()
+                .map(|&speed_rpm| {
+                    let p = run_point(case, speed_rpm, load_nm).with_context(|| {
+                        format!(
+                            "motor {}, {speed_rpm} r/min, load {} %",
+                            case.key, LOADS_PCT[l]
+                        )
+                    });
+                    bar.inc(1);
+                    p
+                })
+                .collect::<Result<Vec<Point>>>()
+        })
+        .collect::<Result<Vec<_>>>()?;
     Ok(Grid {
         case: *case,
         max_rpm,
@@ -513,18 +499,20 @@ pub fn run_grid(case: &Case, threads: usize) -> Result<Grid> {
 }
 
 /// Start-up outside the map: from `n` initial angles, no load, to half the rated speed; the
-/// angles from which the drive tripped (degrees) and the fault's name.
-pub fn startup_check(case: &Case, n: usize) -> Result<Vec<(f64, &'static str)>> {
-    let mut failed = Vec::new();
-    for k in 0..n {
-        let theta = 360.0 * k as f64 / n as f64;
-        let (sc, _) = scenario_at(case, 0.5 * case.rated_rpm, 0.0, theta)?;
-        let run = run_scenario(&sc)?;
-        if let Some(r) = first_fault(&run.rows) {
-            failed.push((theta, r.fault()));
-        }
-    }
-    Ok(failed)
+/// angles from which the drive tripped (degrees) and the fault's name. `bar` advances by one
+/// per angle.
+pub fn startup_check(case: &Case, n: usize, bar: &ProgressBar) -> Result<Vec<(f64, &'static str)>> {
+    let faults = (0..n)
+        .into_par_iter()
+        .map(|k| {
+            let theta = 360.0 * k as f64 / n as f64;
+            let (sc, _) = scenario_at(case, 0.5 * case.rated_rpm, 0.0, theta)?;
+            let run = run_scenario(&sc)?;
+            bar.inc(1);
+            Ok(first_fault(&run.rows).map(|r| (theta, r.fault())))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(faults.into_iter().flatten().collect())
 }
 
 /// `cargo xtask map`: every motor's grid, the figures, the section of `docs/PERFORMANCE.md`.
@@ -546,19 +534,26 @@ pub fn main(args: &[String]) -> Result<()> {
     if !args.is_empty() {
         return Err(usage());
     }
-    let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
     let dir = super::root().join("docs/figures");
     const STARTUP_ANGLES: usize = 12;
-    let mut grids = Vec::new();
-    for case in &CASES {
-        eprintln!("operating map of motor {} ...", case.key);
-        let g = run_grid(case, threads)?;
-        let failed = startup_check(case, STARTUP_ANGLES)?;
-        print!("{}", doc::compact(&g));
-        let path = dir.join(format!("map-motor-{}.svg", case.key));
-        std::fs::write(&path, svg::draw(&g))?;
+    let points = LOADS_PCT.len() * (SPEEDS_PCT.len() + 1) + STARTUP_ANGLES;
+    let bar = progress::bar(CASES.len() * points, "map: motors a, b, c");
+    // The three motors share the cores; their tables and figures follow in order.
+    let grids = CASES
+        .par_iter()
+        .map(|case| {
+            progress::eprintln(format_args!("operating map of motor {} ...", case.key));
+            let g = run_grid(case, &bar)?;
+            let failed = startup_check(case, STARTUP_ANGLES, &bar)?;
+            Ok((g, failed))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    drop(bar);
+    for (g, _) in &grids {
+        print!("{}", doc::compact(g));
+        let path = dir.join(format!("map-motor-{}.svg", g.case.key));
+        std::fs::write(&path, svg::draw(g))?;
         eprintln!("wrote {}", path.display());
-        grids.push((g, failed));
     }
     let path = super::root().join("docs/PERFORMANCE.md");
     let text = std::fs::read_to_string(&path).unwrap_or_default();
@@ -571,57 +566,4 @@ pub fn main(args: &[String]) -> Result<()> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn case(key: &str) -> &'static Case {
-        CASES.iter().find(|c| c.key == key).unwrap()
-    }
-
-    #[test]
-    fn motor_b_holds_its_rated_point_in_field_weakening() {
-        let b = case("b");
-        let p = run_point(b, b.rated_rpm, b.rated_nm).unwrap();
-        assert_eq!(p.outcome, Outcome::Held, "{p:?}");
-        assert!(p.angle_rms_rad < 0.05, "{p:?}");
-        assert!(p.speed_err_pct < 2.0, "{p:?}");
-        // Beyond the voltage of i_d = 0: weakened, at the circle's 97 % margin.
-        assert!(
-            p.i_d_a < -1.0 && p.modulation > 0.95 && p.modulation < 1.0,
-            "{p:?}"
-        );
-        // The copper loss is 1.5·R·|i|² of the currents the row reports.
-        let expected = 1.5 * 7.2 * p.i_mag_a * p.i_mag_a;
-        assert!((p.copper_w / expected - 1.0).abs() < 0.05, "{p:?}");
-    }
-
-    #[test]
-    fn motor_c_runs_unloaded_at_130_percent() {
-        let c = case("c");
-        let p = run_point(c, 1.3 * c.rated_rpm, 0.0).unwrap();
-        assert_eq!(p.outcome, Outcome::Held, "{p:?}");
-        assert!(p.speed_err_pct < 2.0, "{p:?}");
-        assert!(p.i_d_a < -10.0, "{p:?}");
-    }
-
-    #[test]
-    fn references_beyond_the_speed_range_are_refused_with_their_reason() {
-        let b = case("b");
-        let (max_rpm, min_rpm) = speed_limits_rpm(b).unwrap();
-        assert!(min_rpm == 0.0 && max_rpm > 1.3 * b.rated_rpm, "{max_rpm}");
-        let p = run_point(b, 1.1 * max_rpm, 0.0).unwrap();
-        let Outcome::AboveMax(used) = p.outcome else {
-            panic!("{p:?}")
-        };
-        assert!((used / max_rpm - 1.0).abs() < 0.01, "{used} {max_rpm}");
-        assert!(p.speed_err_pct < 5.0, "{p:?}");
-        // The NLO cannot hold standstill: held at its least speed, 10 % of rated.
-        let a = case("a");
-        let p = run_point(a, 0.0, 0.0).unwrap();
-        let Outcome::BelowMinimum(held) = p.outcome else {
-            panic!("{p:?}")
-        };
-        assert!((held - 0.1 * a.rated_rpm).abs() < 1.0, "{held}");
-        assert!((p.speed_rpm - held).abs() < 0.05 * held, "{p:?}");
-    }
-}
+mod tests;
