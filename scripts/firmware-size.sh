@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds the B-G431B-ESC1 firmware (examples/b-g431b-esc1, release, thumbv7em-none-eabihf),
-# prints its flash and static RAM, and fails (exit 1) if
+# Builds the B-G431B-ESC1 firmware (examples/b-g431b-esc1, release, thumbv7em-none-eabihf)
+# with the root's `cargo firmware` (the documented command, .cargo/config.toml), prints its
+# flash and static RAM, and fails (exit 1) if
 #   - flash (text + data) exceeds 64 KiB or static RAM (data + bss, .uninit included)
 #     exceeds 16 KiB, or
 #   - text, data or bss differ from the checked-in snapshot
@@ -24,7 +25,7 @@ if ! command -v arm-none-eabi-size >/dev/null; then
   exit 1
 fi
 
-(cd "$fw" && cargo build --release --locked >&2)
+(cd "$root" && cargo firmware --locked >&2)
 target_dir="${CARGO_TARGET_DIR:-$fw/target}"
 elf="$target_dir/thumbv7em-none-eabihf/release/b-g431b-esc1"
 

@@ -9,7 +9,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 fw="$root/examples/b-g431b-esc1"
 target_dir="${CARGO_TARGET_DIR:-$fw/target}"
 elf="$target_dir/thumbv7em-none-eabihf/release/b-g431b-esc1"
-[ -f "$elf" ] || (cd "$fw" && cargo build --release --locked >&2)
+[ -f "$elf" ] || (cd "$root" && cargo firmware --locked >&2)
 callers=$(arm-none-eabi-objdump -d -C "$elf" | awk '
   /^[0-9a-f]+ <.*>:$/ { fn = $0; sub(/^[0-9a-f]+ </, "", fn); sub(/>:$/, "", fn) }
   /\t(bl|b|b\.w|blx)\t+[0-9a-f]+ <core::panicking::/ { print fn }' | sort -u)

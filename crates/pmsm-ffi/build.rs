@@ -132,7 +132,7 @@ fn main() {
         ..Default::default()
     };
     cbindgen::Builder::new()
-        .with_crate(&dir)
+        .with_src(dir.join("src/lib.rs"))
         .with_config(config)
         .generate()
         .expect("cbindgen could not generate pmsm.h")

@@ -23,6 +23,8 @@ volatile uint16_t ccr[3];       /* stands for TIM1->CCR1..3 */
 
 int main(void) {
 #ifdef WITH_PMSM
+    /* The library linked is the one the header describes. */
+    if (pmsm_version() != PMSM_VERSION) return 1;
 #ifdef FROM_IMAGE
     if (pmsm_drive_init_image(&storage, sizeof storage, pmsm_image,
                               (size_t)(pmsm_image_end - pmsm_image), &drive) != PMSM_OK)

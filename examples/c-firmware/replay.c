@@ -63,6 +63,10 @@ void replay_config(pmsm_config_t *c, uint32_t period_ticks) {
 int replay_run(const int32_t *words, size_t n_words, const void *image, size_t image_len,
                replay_print_fn print, uint32_t *steps) {
     *steps = 0;
+    if (pmsm_version() != PMSM_VERSION) {
+        print("replay: libpmsm_ffi.a is not the version of pmsm.h\n");
+        return -1;
+    }
     if (n_words < 5 || words[0] != MAGIC || words[1] != VERSION || words[3] != WORDS) {
         print("replay: not a recording (magic, version or word count)\n");
         return -1;

@@ -87,6 +87,27 @@
 #define PMSM_STORAGE_WORDS 1024
 
 /**
+ * Major part of the library's version (the crate's `CARGO_PKG_VERSION_MAJOR`).
+ */
+#define PMSM_VERSION_MAJOR 0
+
+/**
+ * Minor part of the library's version.
+ */
+#define PMSM_VERSION_MINOR 1
+
+/**
+ * Patch part of the library's version.
+ */
+#define PMSM_VERSION_PATCH 0
+
+/**
+ * The version as one number, `major << 16 | minor << 8 | patch` (each part below 256), as
+ * `pmsm_version()` returns it.
+ */
+#define PMSM_VERSION (((PMSM_VERSION_MAJOR << 16) | (PMSM_VERSION_MINOR << 8)) | PMSM_VERSION_PATCH)
+
+/**
  * Status returned by every function that can fail. `PMSM_OK` (0) is success; errors are
  * negative. `pmsm_status_message` gives a one-line description of each.
  */
@@ -1121,6 +1142,12 @@ pmsm_status_t pmsm_scale_speed(pmsm_drive_t *drive, double rpm_per_unit, pmsm_sc
  * `scale` is NULL or points to a `pmsm_scale_t`.
  */
 int32_t pmsm_scale_apply(const pmsm_scale_t *scale, int32_t x);
+
+/**
+ * The version of the linked library, `major << 16 | minor << 8 | patch`: compare it with the
+ * header's `PMSM_VERSION` at start-up. Callable from any context.
+ */
+uint32_t pmsm_version(void);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -13,8 +13,9 @@
 //! Modules: `types` (the C types), `handle` (the opaque drive and the pointer checks), `drive`
 //! (init, commands, step), `read` (state, estimate, telemetry, initial position, fault
 //! record), `scale` (ADC conversions), `image` (drives built on the host, loaded without the
-//! design code), `convert` (C configuration and codes to and from the core). The cargo features
-//! `mras-current`, `nlo`, `ao`, `mras-emf` (default: all) select the estimators built in.
+//! design code), `version` (the library's version), `convert` (C configuration and codes to
+//! and from the core). The cargo features `mras-current`, `nlo`, `ao`, `mras-emf` (default:
+//! all) select the estimators built in.
 #![no_std]
 #![allow(non_camel_case_types)]
 
@@ -30,6 +31,7 @@ mod image;
 mod read;
 mod scale;
 mod types;
+mod version;
 
 pub use convert::{fault_code, state_code};
 pub use drive::*;
@@ -38,6 +40,7 @@ pub use image::*;
 pub use read::*;
 pub use scale::*;
 pub use types::*;
+pub use version::*;
 
 #[cfg(not(any(
     feature = "mras-current",

@@ -276,3 +276,30 @@ fn storage_fits() {
         pmsm_drive_align()
     );
 }
+
+#[test]
+fn version_is_the_crates() {
+    let parts: Vec<u32> = env!("CARGO_PKG_VERSION")
+        .split(['.', '-'])
+        .take(3)
+        .map(|p| p.parse().unwrap())
+        .collect();
+    assert_eq!(
+        pmsm_version(),
+        (parts[0] << 16) | (parts[1] << 8) | parts[2],
+        "pmsm_version() is not the crate's version {}",
+        env!("CARGO_PKG_VERSION")
+    );
+    assert_eq!(pmsm_version(), PMSM_VERSION);
+    let header = include_str!("../include/pmsm.h");
+    for (name, value) in [
+        ("PMSM_VERSION_MAJOR", parts[0]),
+        ("PMSM_VERSION_MINOR", parts[1]),
+        ("PMSM_VERSION_PATCH", parts[2]),
+    ] {
+        assert!(
+            header.contains(&format!("#define {name} {value}\n")),
+            "pmsm.h does not define {name} {value}"
+        );
+    }
+}
