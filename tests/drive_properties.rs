@@ -28,7 +28,7 @@ fn drive(scale: f64, estimator: EstimatorKind, startup: StartupMode) -> Option<D
         current_full_scale_a: 10.0,
     };
     let options = DriveOptions {
-        estimator,
+        estimator: Some(estimator),
         startup: Some(startup),
         ..DriveOptions::default()
     };

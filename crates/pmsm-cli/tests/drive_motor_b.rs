@@ -272,3 +272,28 @@ fn motor_a_nlo_from_standstill_under_load() {
     assert!(rms_angle(&steady) <= 0.02 && speed_err(&steady) <= 0.02);
     assert!((at_speed - 1146.0).abs() < 0.02 * 1146.0);
 }
+
+/// Motor A with the defaults only (no `[control]`): the drive chooses the NLO for the surface
+/// motor and holds as when it is named.
+#[test]
+fn motor_a_with_the_defaults_only() {
+    let sc = scenario("a-defaults.toml", &[]);
+    assert!(sc.control.observer_auto);
+    assert_eq!(
+        sc.control.observer,
+        pmsm_cli::scenario_file::ObserverKind::Nlo
+    );
+    let run = run_scenario(&sc).unwrap();
+    no_fault(&run);
+    let running = window(&run.rows, 0.9, 3.0);
+    assert!(running.iter().all(|r| r.state == DriveState::Run));
+    let steady = window(&run.rows, 2.6, 3.0);
+    println!(
+        "motor A, defaults: max angle error after handover {:.3} rad, steady rms {:.4} rad ({:.3} %)",
+        max_angle(&running),
+        rms_angle(&steady),
+        100.0 * speed_err(&steady)
+    );
+    assert!(max_angle(&running) <= 0.5);
+    assert!(rms_angle(&steady) <= 0.02 && speed_err(&steady) <= 0.02);
+}

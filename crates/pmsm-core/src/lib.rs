@@ -153,9 +153,9 @@ pub use observer::mras_emf::{
     PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
 };
 pub use observer::{
-    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MAX_GAIN_TS,
-    MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, MrasModel, Nlo,
-    NloConfig, ObserverInput, default_observer_gain,
+    AnyEstimator, Ao, AoConfig, ESTIMATOR_SALIENCY, Estimate, Estimator, EstimatorConfig,
+    EstimatorKind, MAX_GAIN_TS, MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf,
+    MrasEmfConfig, MrasModel, Nlo, NloConfig, ObserverInput, default_observer_gain,
 };
 pub use params::{
     InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative, positive,

@@ -195,6 +195,12 @@ enum pmsm_estimator_t
    * open-loop start. Cargo feature `mras-emf`.
    */
   PMSM_ESTIMATOR_MRAS_EMF = 3,
+  /**
+   * The one the defaults choose for the motor, as `pmsm simulate`'s `observer = "auto"`:
+   * the current-model MRAS when `|L_q − L_d|/(L_q + L_d)` ≥ 0.04 (an interior motor), the
+   * NLO otherwise (a surface motor). A library built without the chosen one refuses it.
+   */
+  PMSM_ESTIMATOR_AUTO = 4,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

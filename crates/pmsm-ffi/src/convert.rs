@@ -106,7 +106,7 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
     motor.validate().map_err(ConfigError::Param)?;
     inverter.validate().map_err(ConfigError::Param)?;
 
-    let estimator = estimator(c.estimator)?;
+    let estimator = estimator(c.estimator, &motor)?;
     let mut design = DriveDesign::default_for(&motor, &inverter, &base, estimator);
     design.startup = match c.startup {
         x if x == pmsm_startup_t::PMSM_STARTUP_DEFAULT as u32 => design.startup,
@@ -172,7 +172,18 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
 }
 
 /// The estimator of a `pmsm_estimator_t` code, if this library was built with it.
-fn estimator(code: u32) -> Result<EstimatorKind, Rejected> {
+fn estimator(code: u32, motor: &MotorParams) -> Result<EstimatorKind, Rejected> {
+    let code = if code == pmsm_estimator_t::PMSM_ESTIMATOR_AUTO as u32 {
+        let chosen = match EstimatorKind::for_motor(motor) {
+            EstimatorKind::Nlo => pmsm_estimator_t::PMSM_ESTIMATOR_NLO,
+            EstimatorKind::Ao => pmsm_estimator_t::PMSM_ESTIMATOR_AO,
+            EstimatorKind::MrasEmf => pmsm_estimator_t::PMSM_ESTIMATOR_MRAS_EMF,
+            EstimatorKind::MrasCurrent => pmsm_estimator_t::PMSM_ESTIMATOR_MRAS_CURRENT,
+        };
+        chosen as u32
+    } else {
+        code
+    };
     let (kind, built, feature) = match code {
         x if x == pmsm_estimator_t::PMSM_ESTIMATOR_MRAS_CURRENT as u32 => (
             EstimatorKind::MrasCurrent,
@@ -194,7 +205,7 @@ fn estimator(code: u32) -> Result<EstimatorKind, Rejected> {
             return Err(Rejected::Range {
                 field: "estimator",
                 value: x,
-                allowed: "0 to 3 (MRAS_CURRENT, NLO, AO, MRAS_EMF)",
+                allowed: "0 to 4 (MRAS_CURRENT, NLO, AO, MRAS_EMF, AUTO)",
             });
         }
     };

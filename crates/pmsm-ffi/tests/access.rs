@@ -387,7 +387,7 @@ fn integer_fields_out_of_range_name_the_range() {
     );
     let mut c = ok;
     c.estimator = 7;
-    assert!(message(&c).contains("must be in 0 to 3"), "{}", message(&c));
+    assert!(message(&c).contains("must be in 0 to 4"), "{}", message(&c));
     let mut c = ok;
     c.startup = 4;
     assert!(message(&c).contains("must be in 0 to 3"), "{}", message(&c));

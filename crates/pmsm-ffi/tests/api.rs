@@ -303,3 +303,48 @@ fn version_is_the_crates() {
         );
     }
 }
+
+/// The outputs of a drive configured with `c` on the recorded inputs: duties and state.
+fn outputs(c: &pmsm_config_t, rows: &[[i32; WORDS]]) -> Vec<[i32; 4]> {
+    let mut s = storage();
+    let d = init(&mut s, c).expect("init");
+    rows.iter()
+        .map(|row| {
+            // SAFETY: `d` is a live handle; the row is valid.
+            let out = unsafe { step_row(d, row) };
+            [out.duty[0], out.duty[1], out.duty[2], out.state as i32]
+        })
+        .collect()
+}
+
+#[test]
+fn auto_estimator_is_the_motors() {
+    let rows = scenario::record();
+    let with = |estimator: pmsm_estimator_t, lq_h: f64| {
+        let mut c = scenario::config_c();
+        c.estimator = estimator as u32;
+        c.lq_h = lq_h;
+        c.startup = pmsm_startup_t::PMSM_STARTUP_KNOWN as u32;
+        outputs(&c, &rows)
+    };
+    use pmsm_estimator_t::*;
+    // Motor B (L_q/L_d 1.6): the current-model MRAS, bit for bit.
+    let lq_b = scenario::config_c().lq_h;
+    assert_eq!(
+        with(PMSM_ESTIMATOR_AUTO, lq_b),
+        with(PMSM_ESTIMATOR_MRAS_CURRENT, lq_b)
+    );
+    // The same motor made surface (L_q = L_d): the NLO, and not the MRAS.
+    let ld = scenario::config_c().ld_h;
+    let auto = with(PMSM_ESTIMATOR_AUTO, ld);
+    assert_eq!(auto, with(PMSM_ESTIMATOR_NLO, ld));
+    let differ = auto
+        .iter()
+        .zip(with(PMSM_ESTIMATOR_MRAS_CURRENT, ld))
+        .filter(|(a, m)| **a != *m)
+        .count();
+    assert!(
+        differ > 10,
+        "NLO and MRAS drives differ in {differ} steps only"
+    );
+}

@@ -5,9 +5,15 @@ use pmsm_core::{ParamError, ParamReason, in_range, positive};
 use serde::Deserialize;
 
 /// Estimators a drive can use.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ObserverKind {
+    /// The one the defaults choose for the motor (`pmsm_core::EstimatorKind::for_motor`: the
+    /// current-model MRAS on an interior motor, the NLO on a surface motor); the default.
+    /// Reading the scenario replaces it with the one chosen ([`Control::observer_auto`] says
+    /// so).
+    #[default]
+    Auto,
     /// Nonlinear reduced-order observer of Solsona, Valla, Muravchik (2000).
     Nlo,
     /// Linear reduced-order observer (AO) of Solsona, Valla, Muravchik (2000).
@@ -65,19 +71,23 @@ pub enum Startup {
 /// update delay), so that a simulated drive meets the timing of the board's.
 pub const DEFAULT_PWM_UPDATE_DELAY_PERIODS: u32 = pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES as u32;
 
-/// `[control]` of a scenario.
-#[derive(Clone, Debug, Deserialize)]
+/// `[control]` of a scenario; the table and every key in it are optional.
+#[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Control {
     /// Control sample rate, Hz (default: the PWM frequency).
     pub sample_hz: Option<f64>,
-    /// Estimator.
+    /// Estimator (default `auto`).
+    #[serde(default)]
     pub observer: ObserverKind,
+    /// The estimator was chosen for the motor (`observer = "auto"`, or no `observer`).
+    #[serde(skip)]
+    pub observer_auto: bool,
     /// Start-up mode (default `auto`).
     #[serde(default)]
     pub startup: Startup,
     /// Dead-time compensation: `true` (both), `false` (off), or `"command"`, `"estimator"`,
-    /// `"both"`, `"off"`.
+    /// `"both"`, `"off"` (default: both).
     #[serde(default)]
     pub deadtime_compensation: Compensation,
     /// Observer gain, rad/s (the estimators of Solsona, Valla, Muravchik (2000)).
@@ -243,7 +253,7 @@ pub enum Compensation {
     Switch(bool),
     /// By name.
     Mode(CompensationMode),
-    /// Not given: off.
+    /// Not given: both, as the drive's design has it (`pmsm_core::DeadTimeDesign`).
     #[default]
     #[serde(skip)]
     Unset,
@@ -267,8 +277,8 @@ impl Compensation {
     /// The mode.
     pub fn mode(self) -> CompensationMode {
         match self {
-            Compensation::Switch(true) => CompensationMode::Both,
-            Compensation::Switch(false) | Compensation::Unset => CompensationMode::Off,
+            Compensation::Switch(true) | Compensation::Unset => CompensationMode::Both,
+            Compensation::Switch(false) => CompensationMode::Off,
             Compensation::Mode(m) => m,
         }
     }

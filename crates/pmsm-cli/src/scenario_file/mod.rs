@@ -15,10 +15,12 @@
 //!
 //! [control]
 //! sample_hz = 14000.0              # default pwm_hz
-//! observer = "mras-current"        # nlo | ao | mras-emf | mras-current
+//! observer = "mras-current"        # auto | nlo | ao | mras-emf | mras-current (default
+//!                                  # auto: mras-current on an interior motor, nlo on a
+//!                                  # surface motor; the whole [control] table is optional)
 //! startup = "ipd"                  # auto | ipd | align | known (default auto: ipd when
 //!                                  # |L_q − L_d|/(L_q + L_d) ≥ 10 %, else align)
-//! deadtime_compensation = true
+//! deadtime_compensation = true     # default true (both: command and estimator)
 //! dead_time_s = 1.5e-6             # what the drive's compensation assumes (default: the
 //!                                  # inverter's dead_time_s, which the plant keeps)
 //! pwm_update_delay_periods = 1     # the plant applies the duties 1 PWM period later
@@ -121,6 +123,7 @@ struct RawScenario {
     duration_s: f64,
     motor: MotorRef,
     inverter: Inverter,
+    #[serde(default)]
     control: Control,
     #[serde(default)]
     initial: RawInitial,
@@ -160,14 +163,28 @@ pub fn read(path: &Path) -> Result<Scenario> {
     {
         bail!("{shown}: `control.sample_hz` must not exceed `inverter.pwm_hz`");
     }
+    let model_motor =
+        crate::scenario_extras::model_motor(raw.control.model_motor.as_deref(), path)?;
+    let mut control = raw.control;
+    if control.observer == ObserverKind::Auto {
+        // Chosen for the motor the drive is told of (its inductances' ratio).
+        let told = &model_motor.as_ref().unwrap_or(&motor).model.params;
+        control.observer = match pmsm_core::EstimatorKind::for_motor(told) {
+            pmsm_core::EstimatorKind::Nlo => ObserverKind::Nlo,
+            pmsm_core::EstimatorKind::Ao => ObserverKind::Ao,
+            pmsm_core::EstimatorKind::MrasEmf => ObserverKind::MrasEmf,
+            pmsm_core::EstimatorKind::MrasCurrent => ObserverKind::MrasCurrent,
+        };
+        control.observer_auto = true;
+    }
     Ok(Scenario {
         path: path.to_owned(),
         duration_s: raw.duration_s,
         motor,
         inverter: raw.inverter,
         thermal: crate::scenario_extras::thermal(raw.thermal.as_ref(), &shown.to_string())?,
-        model_motor: crate::scenario_extras::model_motor(raw.control.model_motor.as_deref(), path)?,
-        control: raw.control,
+        model_motor,
+        control,
         theta0_rad: raw.initial.theta_e_deg.to_radians(),
         omega_m0_rad_s: raw.initial.speed_rpm * std::f64::consts::TAU / 60.0,
         speed_ref,
@@ -195,6 +212,37 @@ mod tests {
         motor = { pole_pairs = 3, rs_ohm = 7.2, ld_h = 0.025, lq_h = 0.04, flux_wb = 0.305, j_kg_m2 = 0.0036 }\n\
         [inverter]\nvdc_v = 540.0\npwm_hz = 14000.0\n\
         [control]\nobserver = \"mras-current\"\nstartup = \"ipd\"\n";
+
+    /// The scenario `text` read from a file.
+    fn read_text(text: &str) -> Scenario {
+        let dir = std::env::temp_dir().join(format!("pmsm-scn-ok-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("s.toml");
+        std::fs::write(&p, text).unwrap();
+        let sc = read(&p).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        sc
+    }
+
+    #[test]
+    fn the_estimator_is_chosen_for_the_motor_by_default() {
+        // No [control] at all: motor B (L_q/L_d 1.6) gets the current-model MRAS.
+        let plain = BASE.split("[control]").next().unwrap();
+        let sc = read_text(plain);
+        assert_eq!(sc.control.observer, ObserverKind::MrasCurrent);
+        assert!(sc.control.observer_auto);
+        // The same motor made surface, `observer = "auto"` said: the NLO.
+        let surface = BASE
+            .replace("lq_h = 0.04", "lq_h = 0.025")
+            .replace("observer = \"mras-current\"", "observer = \"auto\"");
+        let sc = read_text(&surface);
+        assert_eq!(sc.control.observer, ObserverKind::Nlo);
+        assert!(sc.control.observer_auto);
+        // A named estimator is kept.
+        let sc = read_text(BASE);
+        assert_eq!(sc.control.observer, ObserverKind::MrasCurrent);
+        assert!(!sc.control.observer_auto);
+    }
 
     #[test]
     fn errors_name_the_key() {

@@ -161,7 +161,10 @@ impl DriveConfig {
         options: DriveOptions,
     ) -> Result<Self, ConfigError> {
         let base = PerUnit::new(motor, inverter, sample_hz)?;
-        let mut design = DriveDesign::default_for(motor, inverter, &base, options.estimator);
+        let estimator = options
+            .estimator
+            .unwrap_or_else(|| EstimatorKind::for_motor(motor));
+        let mut design = DriveDesign::default_for(motor, inverter, &base, estimator);
         if let Some(startup) = options.startup {
             design.startup = startup;
         }

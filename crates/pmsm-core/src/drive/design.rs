@@ -355,10 +355,11 @@ pub const MRAS_REFERENCE_WEIGHT: f64 = 0.5;
 /// The few choices a user makes about a drive; everything else is
 /// [`DriveDesign::default_for`]'s (for more, change a [`DriveDesign`] and use
 /// [`DriveConfig::new`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DriveOptions {
-    /// The estimator (default: the current-model MRAS, which starts from standstill).
-    pub estimator: EstimatorKind,
+    /// The estimator; `None`: [`EstimatorKind::for_motor`] (the current-model MRAS on an
+    /// interior motor, the NLO on a surface motor).
+    pub estimator: Option<EstimatorKind>,
     /// How the drive starts; `None`: [`StartupMode::Auto`] (initial position detection on a
     /// salient motor, alignment otherwise).
     pub startup: Option<StartupMode>,
@@ -368,18 +369,6 @@ pub struct DriveOptions {
     pub overmodulation: bool,
     /// [`DriveDesign::pwm_delay_samples`]; `None`: 0.
     pub pwm_delay_samples: Option<u8>,
-}
-
-impl Default for DriveOptions {
-    fn default() -> Self {
-        Self {
-            estimator: EstimatorKind::MrasCurrent,
-            startup: None,
-            deadtime: None,
-            overmodulation: false,
-            pwm_delay_samples: None,
-        }
-    }
 }
 
 #[cfg(test)]

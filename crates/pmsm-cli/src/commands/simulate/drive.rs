@@ -58,7 +58,7 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
         dead_time_s: sc.control.dead_time_s.unwrap_or(inverter.dead_time_s),
         ..inverter
     };
-    let estimator = estimator_kind(sc.control.observer);
+    let estimator = estimator_kind(sc.control.observer, &model);
     let mut design = DriveDesign::default_for(&model, &drive_inverter, &base, estimator);
     apply_control(&mut design, sc, &model);
     let pwm_delay_periods = sc
@@ -221,8 +221,10 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     }
 }
 
-fn estimator_kind(observer: ObserverKind) -> EstimatorKind {
+fn estimator_kind(observer: ObserverKind, model: &MotorParams) -> EstimatorKind {
     match observer {
+        // Resolved when the scenario is read; the same choice here.
+        ObserverKind::Auto => EstimatorKind::for_motor(model),
         ObserverKind::Nlo => EstimatorKind::Nlo,
         ObserverKind::Ao => EstimatorKind::Ao,
         ObserverKind::MrasEmf => EstimatorKind::MrasEmf,

@@ -98,10 +98,15 @@ fn summarise(span_s: (f64, f64), span: &[&Row]) -> Option<Phase> {
 /// Prints what was run, the initial position found, one line per phase and the first fault.
 pub(super) fn print_summary(sc: &Scenario, result: &Run) {
     crate::outln!(
-        "pmsm simulate: {} on {}, {:?} estimator, start-up {}, {:.3} s at {:.0} Hz",
+        "pmsm simulate: {} on {}, {:?} estimator{}, start-up {}, {:.3} s at {:.0} Hz",
         sc.path.display(),
         sc.motor.name,
         sc.control.observer,
+        if sc.control.observer_auto {
+            " (auto)"
+        } else {
+            ""
+        },
         startup_name(result.startup),
         sc.duration_s,
         sc.control.sample_hz.unwrap_or(sc.inverter.pwm_hz)
@@ -178,6 +183,7 @@ pub fn speed_ref_notice(sc: &Scenario, rows: &[Row]) -> Option<String> {
     let last = rows.iter().rev().find(|r| r.speed_ref_held_rpm.is_some())?;
     let held = last.speed_ref_held_rpm?;
     let name = match sc.control.observer {
+        ObserverKind::Auto => "chosen estimator",
         ObserverKind::Nlo => "NLO",
         ObserverKind::Ao => "AO",
         ObserverKind::MrasEmf => "MRAS on the EMF",

@@ -5,7 +5,7 @@ use crate::observer::EstimatorKind;
 
 fn config() -> DriveConfig {
     let options = DriveOptions {
-        estimator: EstimatorKind::Nlo,
+        estimator: Some(EstimatorKind::Nlo),
         ..DriveOptions::default()
     };
     DriveConfig::from_params(&motor_b(), &inverter_b(), 14e3, options).unwrap()
