@@ -297,3 +297,20 @@ fn motor_a_with_the_defaults_only() {
     assert!(max_angle(&running) <= 0.5);
     assert!(rms_angle(&steady) <= 0.02 && speed_err(&steady) <= 0.02);
 }
+
+/// The board kit's gimbal motor on its inverter with the defaults only: start, 1000 r/min,
+/// 30 % load, reversal under it; no fault, within 0.1 rad rms in each steady stretch.
+#[test]
+fn gimbal_motor_on_the_board_with_the_defaults() {
+    let run = run_scenario(&scenario("gbm2804h-board.toml", &[])).unwrap();
+    no_fault(&run);
+    for (from, to) in [(1.2, 1.5), (1.8, 2.3), (3.2, 4.0)] {
+        let steady = window(&run.rows, from, to);
+        println!(
+            "gimbal {from}-{to} s: rms angle error {:.4} rad, speed error {:.3} %",
+            rms_angle(&steady),
+            100.0 * speed_err(&steady)
+        );
+        assert!(rms_angle(&steady) <= 0.1 && speed_err(&steady) <= 0.05);
+    }
+}

@@ -110,10 +110,10 @@ pub fn button_down(gpioc: &pac::GPIOC) -> bool {
 
 /// Current limit of the commissioning run (A peak): the base of the identification's per
 /// unit, its resistance levels are 30 to 60 % of it and it trips at 150 %. The board stands
-/// 40 A peak; 4 A suits the small motors it is made for and keeps the current well above
-/// the ADC's step (29 mA). Lower it for a motor rated below 3 A RMS, never above the
-/// motor's rated peak current.
-pub const COMMISSION_CURRENT_A: f64 = 4.0;
+/// 40 A peak; 1 A suits the kit's gimbal motor (rated 1.13 A peak) and keeps the current
+/// well above the ADC's step (29 mA). Raise it for a larger motor (4 A for one rated near
+/// 3 A RMS), never above the motor's rated peak current.
+pub const COMMISSION_CURRENT_A: f64 = 1.0;
 
 /// Polls (10 ms each) the button must be held for a long press (2 s): commissioning.
 pub const LONG_PRESS_POLLS: u8 = 200;

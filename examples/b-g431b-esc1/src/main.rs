@@ -46,6 +46,16 @@ fn halt(why: &str) -> ! {
     }
 }
 
+// The one estimator built in (Cargo.toml: pmsm-core's feature `nlo`) is the one the defaults
+// choose for the motor of motor.rs, a surface motor (`EstimatorKind::for_motor`). An interior
+// motor gets the current-model MRAS: build pmsm-core with `mras-current` instead (both do
+// not fit the 64 KiB image).
+const _: () = assert!(
+    motor::LQ_H - motor::LD_H < pmsm_core::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H)
+        && motor::LD_H - motor::LQ_H < pmsm_core::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),
+    "motor.rs holds an interior motor: build pmsm-core with feature `mras-current`, not `nlo`"
+);
+
 /// The drive's options on this board: defaults, and the compensation of TIM1's compare
 /// preload (the duties of a sample act one period later, `pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES`).
 fn drive_options() -> pmsm_core::DriveOptions {

@@ -1,30 +1,33 @@
-//! The motor and inverter this firmware drives. The B-G431B-ESC1 kit has no fixed motor:
-//! REPLACE these values with your motor's (R and L measured line-to-neutral, ψ from the
-//! back-EMF constant: ψ = Ke[V_peak,LL / (rad/s mech)] / (√3 · p)).
+//! The motor and inverter this firmware drives. The B-G431B-ESC1 kit ships with the gimbal
+//! motor GBM2804H-100T (examples/motor-gbm2804h-100t.toml): these are its values, from ST's
+//! and iFlight's published data. For another motor REPLACE them (R and L measured
+//! line-to-neutral, ψ from the back-EMF constant: ψ = Ke[V_peak,LL / (rad/s mech)] / (√3 · p)),
+//! or identify it on the board (`--features commissioning`, the README).
 //!
-//! Defaults: a small 24 V interior PM motor.
+//! A surface motor: the defaults drive it with the NLO after an alignment
+//! (`EstimatorKind::for_motor`, docs/drive.md "which estimator").
 
 use pmsm_core::{InverterParams, MotorParams};
 
-/// Pole pairs.
-pub const POLE_PAIRS: u32 = 4;
+/// Pole pairs (12 slots, 14 poles).
+pub const POLE_PAIRS: u32 = 7;
 /// Stator phase resistance, Ω.
-pub const RS_OHM: f64 = 0.3;
+pub const RS_OHM: f64 = 5.3;
 /// d-axis inductance, H.
-pub const LD_H: f64 = 0.6e-3;
-/// q-axis inductance, H.
-pub const LQ_H: f64 = 1.0e-3;
+pub const LD_H: f64 = 1.06e-3;
+/// q-axis inductance, H (a surface motor: `L_q = L_d`).
+pub const LQ_H: f64 = 1.06e-3;
 /// Magnet flux linkage, Wb (peak, electrical).
-pub const FLUX_WB: f64 = 0.01;
-/// Rated current, A RMS (the per-unit base current is its peak, 7.07 A).
-pub const RATED_A_RMS: f64 = 5.0;
-/// Rotor and load inertia, kg·m².
-pub const J_KG_M2: f64 = 2e-5;
+pub const FLUX_WB: f64 = 0.0056;
+/// Rated current, A RMS (the per-unit base current is its peak, 1.13 A).
+pub const RATED_A_RMS: f64 = 0.8;
+/// Rotor inertia, kg·m² (the bare motor's bell).
+pub const J_KG_M2: f64 = 6e-6;
 /// Viscous friction, N·m·s/rad.
-pub const B_NM_S: f64 = 1e-5;
+pub const B_NM_S: f64 = 1e-6;
 
-/// Nominal bus voltage, V.
-pub const VDC_V: f64 = 24.0;
+/// Nominal bus voltage, V (the motor's 3S supply).
+pub const VDC_V: f64 = 12.0;
 /// PWM frequency, Hz (one control sample per PWM period).
 pub const PWM_HZ: u32 = 20_000;
 /// Dead time, ns.
