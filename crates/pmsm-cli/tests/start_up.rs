@@ -281,3 +281,47 @@ fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
     println!("at a tenth: {} at {:.3} s", fault.fault(), fault.t_s);
     assert!(fault.t_s < 0.7, "{}", fault.t_s);
 }
+
+/// Motor B with linear iron: the pulses find the axis but not the magnet's polarity (no
+/// saturation to tell). An automatic start falls back to the alignment, says so and runs;
+/// a start told to detect names the failure.
+#[test]
+fn an_automatic_start_without_polarity_falls_back_to_the_alignment() {
+    let edits = |startup: &'static str| {
+        [
+            (
+                "motor = \"motor-b.toml\"",
+                "motor = \"motor-b-linear.toml\"",
+            ),
+            ("startup = \"ipd\"", startup),
+        ]
+    };
+    let sc = common::example_edited("b-800rpm-load.toml", &edits("startup = \"auto\""));
+    let run = run_scenario(&sc).unwrap();
+    assert!(
+        matches!(
+            run.ipd_fallback,
+            Some(pmsm_core::IpdFault::NoPolarity { .. })
+        ),
+        "{:?}",
+        run.ipd_fallback
+    );
+    assert!(first_fault(&run.rows).is_none());
+    let steady: Vec<&Row> = run
+        .rows
+        .iter()
+        .filter(|r| r.t_s >= 1.2 && r.t_s < 1.6)
+        .collect();
+    let rms = rms_angle(&steady);
+    let speed = steady.iter().map(|r| r.speed_rpm).sum::<f64>() / steady.len() as f64;
+    println!("fell back: steady rms {rms:.4} rad, {speed:.1} r/min");
+    assert!(rms <= 0.05 && (speed - 800.0).abs() <= 8.0);
+
+    let told = common::example_edited("b-800rpm-load.toml", &edits("startup = \"ipd\""));
+    let run = run_scenario(&told).unwrap();
+    assert!(run.ipd_fallback.is_none());
+    assert_eq!(
+        first_fault(&run.rows).map(Row::fault),
+        Some("initial_position")
+    );
+}

@@ -46,6 +46,10 @@ pub struct DriveConfig {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct IsrConfig {
     pub deadtime: DeadTimeConfig,
+    /// [`StartupMode::Auto`] chose the detection: one that finds the axis but not the
+    /// magnet's polarity ([`IpdFault::NoPolarity`](crate::IpdFault)) waits for the task, which
+    /// falls back to the alignment, instead of tripping.
+    pub ipd_fallback: bool,
     /// The closed current loop's lag as a shift, `k = round(log2(1/(ω_c T_s)))` (0..=20): the
     /// dead-time compensation's signs follow the q reference through it (the current the loop
     /// will carry). 0 (the reference itself) when overmodulating: beyond the circle the loops
@@ -191,6 +195,7 @@ impl DriveConfig {
     ) -> Result<Self, ConfigError> {
         let base = PerUnit::new(motor, inverter, sample_hz)?;
         let mut design = design;
+        let auto_startup = design.startup == StartupMode::Auto;
         design.startup = design.startup.resolve(motor, &base, &design.ipd);
         // Built first: a fallible call late in the literal below makes the compiler keep
         // every field before it in temporaries (kilobytes of stack on ARMv6-M).
@@ -344,6 +349,7 @@ impl DriveConfig {
         let speed = SpeedConfig::new(motor, &base, design.speed)?;
         let isr = IsrConfig {
             deadtime,
+            ipd_fallback: auto_startup && design.startup == StartupMode::Ipd,
             deadtime_lag_shift: if design.overmodulation {
                 0
             } else {

@@ -31,7 +31,7 @@ use crate::angle::{Angle, SinCos};
 use crate::control::current::CurrentController;
 use crate::deadtime::DeadTimeBus;
 use crate::frames::{AlphaBeta, Dq, clarke};
-use crate::ipd::{Ipd, IpdResult};
+use crate::ipd::{Ipd, IpdFault, IpdResult};
 use crate::num::{Pu, Unit};
 use crate::observer::{AnyEstimator, Estimate, Estimator, Frame, ObserverInput};
 use crate::svpwm::{BusReciprocal, Duties};
@@ -42,6 +42,9 @@ enum Phase {
     Off,
     /// The detection; `Some` once it found the rotor (the zero vector held).
     Ipd(Option<Angle>),
+    /// The detection found the axis, not the polarity, and the start may fall back to the
+    /// alignment (`IsrConfig::ipd_fallback`): the zero vector until the task says what next.
+    IpdNoPolarity(IpdFault),
     Align,
     Calibrate(Angle),
     OpenLoop,
@@ -169,7 +172,7 @@ impl DriveIsr {
         use super::DriveState as S;
         match self.phase {
             Phase::Off => S::Idle,
-            Phase::Ipd(_) => S::Ipd,
+            Phase::Ipd(_) | Phase::IpdNoPolarity(_) => S::Ipd,
             Phase::Align | Phase::Calibrate(_) => S::Align,
             Phase::OpenLoop => S::OpenLoop,
             Phase::Run => S::Run,
@@ -274,7 +277,7 @@ impl DriveIsr {
                 self.open_loop_step()
             }
             Phase::Ipd(None) => return self.ipd_step(i, input.vdc),
-            Phase::Ipd(Some(_)) => {
+            Phase::Ipd(Some(_)) | Phase::IpdNoPolarity(_) => {
                 // The detection is done: the zero vector until the task says what next.
                 self.v_est = AlphaBeta::default();
                 return DriveOutput {
@@ -438,6 +441,14 @@ impl DriveIsr {
                 duties: out.duties,
                 pwm_on: out.pwm_on,
             },
+            Some(Err(f @ IpdFault::NoPolarity { .. })) if self.config.ipd_fallback => {
+                self.phase = Phase::IpdNoPolarity(f);
+                self.v_est = AlphaBeta::default();
+                DriveOutput {
+                    duties: Duties::HALF,
+                    pwm_on: true,
+                }
+            }
             Some(Err(f)) => self.trip(Fault::InitialPosition(f)),
             Some(Ok(r)) => {
                 self.ipd_result = Some(r);

@@ -28,6 +28,9 @@ pub(crate) enum Status {
     Ipd,
     /// The detection found the rotor at this angle; the zero vector is held.
     IpdDone(Angle),
+    /// The detection found the axis, not the polarity (`IpdFault::NoPolarity`), and the start
+    /// may fall back to the alignment; the zero vector is held.
+    IpdNoPolarity(IpdFault),
     /// The alignment runs.
     Align,
     /// The alignment ended with the rotor at this angle; its current is held.
@@ -258,6 +261,11 @@ impl Status {
                 write_fault(w, &f);
                 return;
             }
+            Status::IpdNoPolarity(f) => {
+                w.u32(9);
+                write_fault(w, &Fault::InitialPosition(f));
+                return;
+            }
         };
         w.u32(tag);
         w.i32(x);
@@ -270,6 +278,12 @@ impl Status {
         let tag = r.u32();
         if tag == 8 {
             return Status::Tripped(read_fault(r));
+        }
+        if tag == 9 {
+            return match read_fault(r) {
+                Fault::InitialPosition(f) => Status::IpdNoPolarity(f),
+                _ => Status::Off,
+            };
         }
         let x = r.i32();
         for _ in 0..3 {

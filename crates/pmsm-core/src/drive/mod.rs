@@ -148,6 +148,11 @@ impl Drive {
         self.isr.ipd_result()
     }
 
+    /// [`DriveTask::ipd_fallback`].
+    pub fn ipd_fallback(&self) -> Option<crate::IpdFault> {
+        self.task.ipd_fallback()
+    }
+
     /// Sets the speed reference ([`DriveTask::set_speed_ref`]).
     pub fn set_speed_ref(&mut self, omega: Pu) {
         self.task.set_speed_ref(omega);

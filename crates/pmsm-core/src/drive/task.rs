@@ -42,6 +42,7 @@ use crate::control::flux::FluxController;
 use crate::control::light_load::LightLoad;
 use crate::control::speed::SpeedController;
 use crate::frames::Dq;
+use crate::ipd::IpdFault;
 use crate::num::{PU_FRAC, Pu, follow};
 
 /// The task side: its configuration and state, the learners, and what it last saw of the
@@ -57,6 +58,9 @@ pub struct DriveTask {
     window: u32,
     /// The interrupt side's trips already taken.
     trips: u32,
+    /// The detection that found no polarity, which the start fell back from to the
+    /// alignment (`IsrConfig::ipd_fallback`).
+    ipd_fallback: Option<IpdFault>,
     speed: SpeedController,
     speed_ref: Pu,
     /// [`DriveTask::run_speed_ref`] of `speed_ref`, computed when it is set.
@@ -143,6 +147,7 @@ impl DriveTask {
             epoch: 0,
             window: 0,
             trips: 0,
+            ipd_fallback: None,
             speed_ref: Pu::ZERO,
             speed_ref_run: Pu::ZERO,
             speed_filtered: Pu::ZERO,
@@ -207,6 +212,7 @@ impl DriveTask {
         self.speed_ref_run = self.run_speed_ref();
         self.monitor.reset();
         self.calibration = Calibration::default();
+        self.ipd_fallback = None;
         match self.config.startup {
             StartupMode::Ipd => self.command(DriveState::Ipd, Mode::Ipd),
             // `Auto` is resolved by `DriveConfig::new`; alignment is its safe reading.
@@ -250,6 +256,12 @@ impl DriveTask {
     /// a calibration or the learner measured it; docs/drive.md, "dead-time calibration").
     pub fn deadtime_scale(&self) -> Pu {
         Pu::from_bits(self.deadtime_scale >> (28 - PU_FRAC))
+    }
+
+    /// The detection whose missing polarity made the last start fall back to the alignment
+    /// ([`StartupMode::Auto`](crate::StartupMode) on a motor that barely saturates), if it did.
+    pub fn ipd_fallback(&self) -> Option<IpdFault> {
+        self.ipd_fallback
     }
 
     /// The field-weakening offset of the d-axis reference (≤ 0; zero below base speed).
@@ -370,6 +382,12 @@ impl DriveTask {
         self.hold = false;
         match (self.state, w.status) {
             (DriveState::Ipd, Status::IpdDone(theta)) if current => self.detected(theta),
+            // An automatic start whose detection saw the axis but not the polarity (a salient
+            // motor whose iron barely saturates): the alignment needs no polarity.
+            (DriveState::Ipd, Status::IpdNoPolarity(f)) if current => {
+                self.ipd_fallback = Some(f);
+                self.command(DriveState::Align, Mode::Align);
+            }
             (DriveState::Align, Status::Aligned(theta)) if current => self.aligned(theta),
             (DriveState::Align, Status::Calibrate) if current => self.calibrate(w),
             (DriveState::OpenLoop, Status::OpenLoop { at_handover: true }) if current => {

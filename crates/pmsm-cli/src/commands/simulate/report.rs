@@ -111,6 +111,12 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
         sc.duration_s,
         sc.control.sample_hz.unwrap_or(sc.inverter.pwm_hz)
     );
+    if let Some(pmsm_core::IpdFault::NoPolarity { along, opposite }) = result.ipd_fallback {
+        crate::outln!(
+            "  initial position: the axis found, not the polarity (saturation along {along:.3}, \
+             opposite {opposite:.3}): aligned instead"
+        );
+    }
     if let Some((est, truth)) = result.ipd {
         let err = wrap((est - truth).to_radians()).to_degrees();
         crate::outln!(

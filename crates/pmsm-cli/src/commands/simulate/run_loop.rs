@@ -89,6 +89,9 @@ pub struct Run {
     pub speed_ref_limited: Option<(f64, f64, f64)>,
     /// The start-up the drive used (`auto` resolved).
     pub startup: pmsm_core::StartupMode,
+    /// The detection without polarity that an automatic start fell back from to the
+    /// alignment (`pmsm_core::Drive::ipd_fallback`).
+    pub ipd_fallback: Option<pmsm_core::IpdFault>,
     /// The dead-time compensation's `V_dead` against the one the drive was told, at the
     /// end (the calibration's; 1 without one).
     pub deadtime_scale: f64,
@@ -171,6 +174,7 @@ pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Resu
         recorder,
         speed_ref_limited,
         startup,
+        ipd_fallback: setup.drive.ipd_fallback(),
         deadtime_scale: setup.drive.deadtime_scale().to_num::<f64>(),
         learner: setup
             .drive

@@ -40,6 +40,7 @@ impl DriveIsr {
                 Phase::Off => Status::Off,
                 Phase::Ipd(None) => Status::Ipd,
                 Phase::Ipd(Some(theta)) => Status::IpdDone(theta),
+                Phase::IpdNoPolarity(f) => Status::IpdNoPolarity(f),
                 Phase::Align if self.open_loop.align_done(&self.config.open_loop) => {
                     Status::Aligned(self.open_loop.align_angle())
                 }

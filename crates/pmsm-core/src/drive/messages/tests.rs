@@ -72,6 +72,10 @@ fn every_message_reads_back_what_was_written() {
         Status::OpenLoop { at_handover: true },
         Status::OpenLoop { at_handover: false },
         Status::Run,
+        Status::IpdNoPolarity(IpdFault::NoPolarity {
+            along: Pu::from_bits(11),
+            opposite: Pu::from_bits(-12),
+        }),
     ]
     .into_iter()
     .chain(faults.iter().map(|&f| Status::Tripped(f)));
