@@ -132,6 +132,14 @@ pub fn in_range(key: &'static str, value: f64, min: f64, max: f64) -> Result<f64
 }
 
 impl MotorParams {
+    /// The saliency `|L_q − L_d|/(L_q + L_d)`: 0 on a surface motor (Khlaief, Boussak, Gossa
+    /// (2012) eq. 10–13, `Δ/Σ`; docs/khlaief2012.md §3). Inlined: a firmware's constant motor
+    /// then folds the choices made from it (estimator, start-up) and links only what they use.
+    #[inline]
+    pub fn saliency(&self) -> f64 {
+        libm::fabs(self.lq_h - self.ld_h) / (self.lq_h + self.ld_h)
+    }
+
     /// Surface or interior motor with `K_T = 1.5 p ψ`, no ratings; call [`MotorParams::validate`].
     #[allow(clippy::too_many_arguments)]
     pub fn new(

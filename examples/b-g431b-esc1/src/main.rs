@@ -49,7 +49,8 @@ fn halt(why: &str) -> ! {
 // The one estimator built in (Cargo.toml: pmsm-core's feature `nlo`) is the one the defaults
 // choose for the motor of motor.rs, a surface motor (`EstimatorKind::for_motor`). An interior
 // motor gets the current-model MRAS: build pmsm-core with `mras-current` instead (both do
-// not fit the 64 KiB image).
+// not fit the 64 KiB image). `MotorParams::saliency` written out: a const check cannot call
+// it.
 const _: () = assert!(
     motor::LQ_H - motor::LD_H < pmsm_core::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H)
         && motor::LD_H - motor::LQ_H < pmsm_core::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),

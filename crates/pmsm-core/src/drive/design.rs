@@ -41,11 +41,10 @@ pub enum StartupMode {
 pub const AUTO_SALIENCY_MARGIN: f64 = 2.0;
 
 impl StartupMode {
-    /// The saliency the initial position detection sees on a linear `motor`,
-    /// `|L_q − L_d|/(L_q + L_d)` (Khlaief, Boussak, Gossa (2012) eq. 10–13, `Δ/Σ`;
-    /// docs/khlaief2012.md §3).
+    /// The saliency the initial position detection sees on a linear `motor`
+    /// ([`MotorParams::saliency`]).
     pub fn saliency(motor: &MotorParams) -> f64 {
-        libm::fabs(motor.lq_h - motor.ld_h) / (motor.lq_h + motor.ld_h)
+        motor.saliency()
     }
 
     /// `Auto` made concrete: the initial position detection when the motor's

@@ -139,9 +139,10 @@ pub enum EstimatorKind {
     MrasCurrent,
 }
 
-/// The saliency `|L_q − L_d|/(L_q + L_d)` from which [`EstimatorKind::for_motor`] counts a
-/// motor as interior (`L_q/L_d` ≥ 1.083): below every interior motor of the random family
-/// (`L_q/L_d` 1.1–2.5, saliency from 0.048), above every surface motor (0).
+/// The saliency ([`MotorParams::saliency`](crate::MotorParams::saliency)) from which
+/// [`EstimatorKind::for_motor`] counts a motor as interior (`L_q/L_d` ≥ 1.083): below every
+/// interior motor of the random family (`L_q/L_d` 1.1–2.5, saliency from 0.048), above every
+/// surface motor (0).
 pub const ESTIMATOR_SALIENCY: f64 = 0.04;
 
 impl EstimatorKind {
@@ -159,8 +160,7 @@ impl EstimatorKind {
     /// servo motors whose resistance is most of their impedance).
     #[inline]
     pub fn for_motor(motor: &crate::params::MotorParams) -> Self {
-        let saliency = libm::fabs(motor.lq_h - motor.ld_h) / (motor.lq_h + motor.ld_h);
-        if saliency >= ESTIMATOR_SALIENCY {
+        if motor.saliency() >= ESTIMATOR_SALIENCY {
             EstimatorKind::MrasCurrent
         } else {
             EstimatorKind::Nlo
