@@ -134,7 +134,7 @@ pub use drive::{
     ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
     WRITE_THRESHOLD,
 };
-pub use error::ConfigError;
+pub use error::{ConfigError, Fit};
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};
 pub use hal::{DutyCyclePwm, PhaseCurrentSampler, PwmErrors, ThreePhasePwm, apply, control_step};
 pub use identify::{

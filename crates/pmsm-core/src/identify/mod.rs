@@ -195,6 +195,7 @@ fn samples(key: &'static str, t_s: f64, ts: f64) -> Result<u32, ConfigError> {
             value: n,
             min: 4.0,
             max: (1u32 << 22) as f64,
+            fit: crate::error::Fit::Other,
         })
     }
 }

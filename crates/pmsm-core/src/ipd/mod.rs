@@ -154,6 +154,7 @@ fn samples(key: &'static str, t_s: f64, ts: f64) -> Result<u32, ConfigError> {
             value: n,
             min: 2.0,
             max: MAX_SAMPLES as f64,
+            fit: crate::error::Fit::Other,
         })
     }
 }

@@ -215,7 +215,7 @@ impl MrasCurrentConfig {
         } else {
             0.0
         };
-        // ω_b T_s ≤ 1 rad (the envelope of `PerUnit`) keeps this below 2^31.
+        // ω_b T_s ≤ 1.5 rad (the envelope of `PerUnit`) keeps this below 2^31 (2.05e9).
         let turn =
             libm::round(base.omega_e_rad_s * ts * libm::ldexp(1.0, 33) / core::f64::consts::TAU);
         let turn_max = i32::MAX as f64;
