@@ -151,6 +151,11 @@ pub struct RefNlo {
     ts: f64,
     accel: f64,
     friction: f64,
+    /// The load estimate's gain `κ²/(64a)`, its bound (2 `I_b`, as the core's) and the load,
+    /// A along `û`.
+    load_gain: f64,
+    load_limit: f64,
+    load: f64,
     emf: [f64; 2],
     u: [f64; 2],
     min_emf: f64,
@@ -168,11 +173,51 @@ impl RefNlo {
             ts,
             accel: ts * m.p() * m.kt_nm_per_a * m.flux_wb / m.j_kg_m2,
             friction: ts * m.b_nm_s / m.j_kg_m2,
+            // κ²/(4a) in A per V of innovation; the core's cap (2²⁰ per unit) binds on no
+            // motor of the tests.
+            load_gain: {
+                let kappa = 1.0 - (-g * ts).exp();
+                let a = ts * m.p() * m.kt_nm_per_a * m.flux_wb / m.j_kg_m2;
+                kappa * kappa / (64.0 * a)
+            },
+            // I_b as `PerUnit` has it, with V_b = ψ ω_b.
+            load_limit: 2.0
+                * m.rated_current_a.map_or(
+                    (m.flux_wb / m.ld_h).min(m.flux_wb * omega_b / m.rs_ohm),
+                    |rms| std::f64::consts::SQRT_2 * rms,
+                ),
+            load: 0.0,
             emf: [0.0; 2],
             u: [1.0, 0.0],
             min_emf: pmsm_core::MIN_EMF_PU * m.flux_wb * omega_b,
             last_omega: 0.0,
         }
+    }
+
+    /// Started at the rotor's angle and speed (as the drive restarts the core's `Nlo` with
+    /// `Estimator::reset` at its handover).
+    pub fn start_at(mut self, theta_rad: f64, omega_rad_s: f64) -> Self {
+        let (s, c) = theta_rad.sin_cos();
+        self.emf = [-self.psi * omega_rad_s * s, self.psi * omega_rad_s * c];
+        let mag = self.emf[0].hypot(self.emf[1]);
+        if mag > 0.0 {
+            self.u = [self.emf[0] / mag, self.emf[1] / mag];
+        }
+        self.dir.forward = omega_rad_s >= 0.0;
+        self.last_omega = omega_rad_s;
+        self
+    }
+
+    /// The load it estimates, A along `û`.
+    pub fn load_a(&self) -> f64 {
+        self.load
+    }
+
+    /// The paper's observer: no load estimate (its mechanical term lets the whole current
+    /// accelerate the rotor).
+    pub fn without_load(mut self) -> Self {
+        self.load_gain = 0.0;
+        self
     }
 
     /// One sample: current at `t_k`, mean voltage over `[t_{k−1}, t_k]`.
@@ -183,7 +228,7 @@ impl RefNlo {
         let prev = self.emf;
         let h = rot(prev);
         let mut e = rot(h);
-        let along = i[0] * self.u[0] + i[1] * self.u[1];
+        let along = i[0] * self.u[0] + i[1] * self.u[1] - self.load;
         for k in 0..2 {
             e[k] += self.accel * along * self.u[k] - self.friction * prev[k];
         }
@@ -193,8 +238,12 @@ impl RefNlo {
             } else {
                 half.sin() / half
             };
+            let innovation = [m[0] - sinc * h[0], m[1] - sinc * h[1]];
+            let along = innovation[0] * self.u[0] + innovation[1] * self.u[1];
+            self.load =
+                (self.load - self.load_gain * along).clamp(-self.load_limit, self.load_limit);
             for k in 0..2 {
-                e[k] += self.kappa * (m[k] - sinc * h[k]);
+                e[k] += self.kappa * innovation[k];
             }
         }
         self.emf = e;

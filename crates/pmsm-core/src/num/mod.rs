@@ -365,8 +365,7 @@ impl Gain {
         Self { mantissa, shift }
     }
 
-    /// The gain's value as a float (exact; for the tests).
-    #[cfg(test)]
+    /// The gain's value as a float (exact).
     pub fn to_f64(self) -> f64 {
         libm::ldexp(self.mantissa as f64, -(self.shift as i32))
     }

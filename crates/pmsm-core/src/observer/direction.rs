@@ -153,6 +153,11 @@ impl Direction {
     }
 
     /// Holds the direction `Some(forward)` (no flip) or lets it flip again (`None`).
+    /// The drive holds the direction (its open loop runs).
+    pub fn is_held(&self) -> bool {
+        self.held
+    }
+
     pub fn hold(&mut self, forward: Option<bool>) {
         if let Some(f) = forward {
             self.forward = f;
