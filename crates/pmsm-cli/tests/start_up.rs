@@ -275,11 +275,28 @@ fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
         "{worst} {}",
         rms_angle(&tail)
     );
-    // Handed over at a tenth of rated speed: a fault before the ramp ends.
-    let rows = run("handover_speed_rpm = 105.5\n");
-    let fault = first_fault(&rows).expect("a fault at a tenth of rated speed");
-    println!("at a tenth: {} at {:.3} s", fault.fault(), fault.t_s);
-    assert!(fault.t_s < 0.7, "{}", fault.t_s);
+    // How far the estimate swings about the rotor from the handover to the ramp's end.
+    let swing = |rows: &[Row]| {
+        rows.iter()
+            .skip_while(|r| r.state != DriveState::Run)
+            .take_while(|r| r.t_s < 0.7)
+            .map(|r| (r.speed_est_rpm - r.speed_rpm).abs())
+            .fold(0.0, f64::max)
+    };
+    // Handed over at a tenth of rated speed: the estimate swings about the rotor at 33 Hz
+    // until the speed loop drives it through zero, and the drive trips on the reversal's
+    // handover or (since the speed loop's bandwidth follows a light rotor, `SPEED_STIFFNESS`)
+    // turns back through the open loop, half a turn off for 15 ms; handed over where it is
+    // damped it swings half as far (128 and 70 r/min; the ramp starts from 105.5 and 167
+    // r/min).
+    let tenth = run("handover_speed_rpm = 105.5\n");
+    let fault = first_fault(&tenth).map(|r| r.t_s);
+    println!(
+        "at a tenth: fault {fault:?}, swing {:.0} r/min; damped: swing {:.0} r/min",
+        swing(&tenth),
+        swing(&rows)
+    );
+    assert!(fault.is_some_and(|t| t < 0.7) || swing(&tenth) > 1.5 * swing(&rows));
 }
 
 /// Motor B with linear iron: the pulses find the axis but not the magnet's polarity (no
