@@ -1,7 +1,7 @@
 //! The drive away from the papers' operating point: the drive told a dead time apart from the
 //! plant's, the hard current sign of the averaged plant, the automatic start-up, a speed
-//! reference below what an estimator can run at, a rotor driven backwards by its load, and the
-//! plot's angle error before the estimator runs. Each through `pmsm simulate`'s own code.
+//! reference below what an estimator can run at, a rotor driven backwards by its load (and a
+//! light one stopped by it), and the plot's angle error before the estimator runs. Each through `pmsm simulate`'s own code.
 
 // The values compared exactly are copied from the file, not computed.
 #![allow(clippy::float_cmp)]
@@ -220,6 +220,39 @@ fn a_reference_below_the_estimators_minimum_is_held_and_said() {
 }
 
 #[test]
+fn a_light_rotor_stopped_by_its_load_ends_in_a_named_fault_within_50_ms_of_the_slip() {
+    // examples/servo-400w-load-step.toml: a bare 400 W servo under a step of half its rated
+    // torque at half its rated speed, with the defaults (the NLO). The first sample of the
+    // closed loop whose angle error passes a quarter turn, and the first fault.
+    let sc = scenario_file::read(&example("servo-400w-load-step.toml")).unwrap();
+    let run = run_scenario(&sc).unwrap();
+    let fault = first_fault(&run.rows).expect("a named fault");
+    let slip = run
+        .rows
+        .iter()
+        .find(|r| {
+            r.state == pmsm_core::DriveState::Run
+                && r.t_s > 1.0
+                && r.angle_error_rad().abs() > std::f64::consts::FRAC_PI_2
+        })
+        .expect("the estimate slips");
+    let delay_ms = 1e3 * (fault.t_s - slip.t_s);
+    println!(
+        "slip at {:.4} s, {} at {:.4} s ({delay_ms:.1} ms)",
+        slip.t_s,
+        fault.fault(),
+        fault.t_s
+    );
+    assert!(fault.t_s > 1.0, "{} at {} s", fault.fault(), fault.t_s);
+    assert!((0.0..=50.0).contains(&delay_ms), "{delay_ms} ms");
+    assert!(
+        ["loss_of_lock", "handover"].contains(&fault.fault()),
+        "{}",
+        fault.fault()
+    );
+}
+
+#[test]
 fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
     // The 24 V servo at +90 r/min, known start, a load above its rated torque from 0.2 s: for
     // each estimator, the first sample with the true speed below zero after the load, and
@@ -234,12 +267,20 @@ fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
     // it turned with the current loops at 0.1/T_s).
     for (observer, expected) in [
         ("mras-current", &["driven_backwards", "loss_of_lock"][..]),
-        ("nlo", &["driven_backwards", "handover", "overspeed"][..]),
-        ("ao", &["driven_backwards", "handover", "overspeed"][..]),
+        // Or the estimate settles on the mirror solution (the rotor's speed with the other sign,
+        // its angle half a turn off) and its angle turns against its speed: loss_of_lock.
+        (
+            "nlo",
+            &["driven_backwards", "handover", "overspeed", "loss_of_lock"][..],
+        ),
+        (
+            "ao",
+            &["driven_backwards", "handover", "overspeed", "loss_of_lock"][..],
+        ),
         // The MRAS on the EMF holds the reference at its least speed (300 r/min here).
         (
             "mras-emf",
-            &["driven_backwards", "handover", "overspeed"][..],
+            &["driven_backwards", "handover", "overspeed", "loss_of_lock"][..],
         ),
     ] {
         let sc = example_edited(
@@ -737,7 +778,9 @@ fn a_rotor_held_back_by_the_current_limit_is_said() {
         .iter()
         .filter(|r| (r.speed_rpm - r.speed_ref_rpm).abs() > 0.2 * rated)
         .collect();
-    assert!(off.len() > 1800, "{} samples off", off.len());
+    // (2100 samples before the speed loop's bandwidth was raised for light rotors,
+    // `SPEED_STIFFNESS`; about 1500 since: still a sixth of a second.)
+    assert!(off.len() > 1000, "{} samples off", off.len());
     assert!(
         off.iter()
             .all(|r| (r.speed_est_rpm - r.speed_rpm).abs() < 0.05 * rated)
@@ -753,7 +796,12 @@ fn a_rotor_held_back_by_the_current_limit_is_said() {
         "{} samples at the limit",
         limited.len()
     );
-    assert!(limited.iter().all(|r| said(r)));
+    // Said from the task period after the loop reaches its limit: at most one period unsaid.
+    let unsaid = limited.iter().filter(|r| !said(r)).count();
+    assert!(
+        unsaid <= pmsm_core::TASK_PERIOD as usize,
+        "{unsaid} samples unsaid"
+    );
     let mut longest = 0.0f64;
     let mut since: Option<f64> = None;
     for r in &back {

@@ -34,8 +34,9 @@ pub enum Fault {
     /// or locked.
     Stall,
     /// The estimator lost its lock: its speed changes faster than the motor can accelerate,
-    /// its health figure is beyond its limit in steady state, or the current loops no longer
-    /// hold their references in the estimated frame (docs/drive.md §3).
+    /// its health figure is beyond its limit in steady state, the current loops no longer
+    /// hold their references in the estimated frame, or its angle turns against its speed
+    /// (docs/drive.md §3).
     LossOfLock,
     /// The control step did not finish within its period (reported by the binding).
     Overrun,

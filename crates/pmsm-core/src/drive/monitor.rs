@@ -20,11 +20,13 @@
 //! | loss of lock | the estimated speed changing faster than 20 × the motor's largest acceleration, over 2 ms, from 100 ms after entering the closed loop | 2–5 ms |
 //! | driven backwards | the speed loop at 90 % of its limit in the reference's direction, the estimated speed the other way beyond 0.1 pu and above a ceiling that starts at its value and falls at 1/16 of the motor's largest deceleration, for 20 ms | 20–40 ms |
 //! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu` (default 1.0 pu), from 100 ms after entering the closed loop, in steady state (40 ms at a constant reference with the estimate within 0.02 pu of it throughout, until the reference changes) | 10–20 ms |
+//! | loss of lock (angle against speed) | the estimated angle turning one way over a task period and the estimated speed the other, both beyond 0.03 pu and the speed below a quarter turn a period, in the closed loop, until the angle has turned a quarter turn (electrical) away from the speed's integral: the mirror solution of a back-EMF estimator (a rotor turning backwards at `θ` has the EMF of one turning forwards at `θ + π`), which a load that stops and reverses a light rotor leaves it in, half a turn off the rotor, or any estimate that turns away from the rotor while its speed does not | a quarter turn at twice the speed: 3 ms at 600 r/min on four pole pairs |
 //! | loss of lock (current tracking) | `|i_d − i_d*| + |i_q − i_q*|` in the estimated frame, filtered over 10 ms (held while the modulator limits the voltage) above a third of the current limit, from 100 ms after entering the closed loop | 10–50 ms |
 
 use super::Fault;
 #[cfg(doc)]
 use crate::Estimator;
+use crate::angle::Angle;
 use crate::frames::{Abc, Dq};
 use crate::num::{Pu, follow, follow_shift, pu_from_f64};
 
@@ -98,10 +100,21 @@ pub(crate) struct MonitorConfig {
     /// 48 V start whose estimated speed lagged at the limit, the angle within 0.21 rad)
     /// peaked at 0.25. In quarters of [`Pu`]'s bits, as the filter.
     pub tracking_limit: i32,
+    /// The estimated angle's turn over a task period (in [`Angle`] bits) as a speed in [`Pu`]
+    /// bits: `(turn · k) >> 16`, `k = 2π 2²⁴ / (2³² ω_b T)` in Q16.16 (`T` the task period).
+    pub turn_to_pu_q16: i64,
+    /// Least speed, by the angle and by the estimate, of an angle turning against the speed.
+    pub against_speed: Pu,
+    /// How far the angle must turn away from the speed's integral, against it, before the
+    /// drive trips: a quarter turn, as `Σ |ω_angle − ω̂|` in [`Pu`] bits over task periods.
+    /// The same bits are the largest estimated speed at which the check is made, a quarter
+    /// turn a task period, so that the angle's turn over the period, a difference of two
+    /// angles, cannot alias (the mirror solution comes about through zero speed, far below).
+    pub against_turn: u64,
 }
 
 impl MonitorConfig {
-    /// For sample period `ts`, base speed `omega_b` (rad/s) and the largest electrical
+    /// For task period `tt`, base speed `omega_b` (rad/s) and the largest electrical
     /// acceleration the motor can make, `p K_T I_max/J` (rad/s²).
     pub fn new(
         tt: f64,
@@ -112,6 +125,9 @@ impl MonitorConfig {
     ) -> Option<Self> {
         // τ/T to the nearest power of two, 1 to 2²⁰ task periods.
         let pole = |tau: f64| follow_shift(tau / tt);
+        // Half a turn (electrical) as Σ ω_pu over task periods, in bits of Pu.
+        let half_turn =
+            libm::ceil(core::f64::consts::PI / (omega_b * tt) * (1u64 << 24) as f64) as u64;
         Some(Self {
             ms2: pole(2e-3)?,
             ms10: pole(10e-3)?,
@@ -125,9 +141,7 @@ impl MonitorConfig {
                 0.5 / (tt * libm::ldexp(1.0, pole(5e-3)? as i32)) / omega_b,
             ),
             // Σ ω_pu ω_b T = π, in bits of Pu.
-            phase_loss_turn: libm::ceil(
-                core::f64::consts::PI / (omega_b * tt) * (1u64 << 24) as f64,
-            ) as u64,
+            phase_loss_turn: half_turn,
             phase_loss_arm_samples: 2 << pole(5e-3)?,
             ms5: pole(5e-3)?,
             stall_samples: libm::ceil(0.05 / tt) as u32,
@@ -142,6 +156,12 @@ impl MonitorConfig {
             stall_rise: pu_from_f64(max_accel_rad_s2 / 64.0 * tt / omega_b),
             backwards_samples: libm::ceil(0.02 / tt) as u32,
             tracking_limit: pu_from_f64(current_limit_pu / 3.0).to_bits() >> 2,
+            // Half a turn, a quarter, and a task period's turn per unit of speed, all from
+            // one figure (π/(ω_b T) in Pu bits, as `phase_loss_turn`).
+            turn_to_pu_q16: (half_turn >> 15) as i64,
+            // 0.03 pu.
+            against_speed: Pu::from_bits(503_316),
+            against_turn: half_turn >> 1,
         })
     }
 }
@@ -176,6 +196,11 @@ pub(crate) struct Monitor {
     jerk: Pu,
     /// The current loops' tracking error, filtered, in quarters of [`Pu`]'s bits.
     tracking: i32,
+    /// How far the estimated angle has turned away from the estimated speed's integral while
+    /// turning against it (Σ of speed differences in [`Pu`] bits), and the last period's
+    /// angle (in the closed loop).
+    against: u64,
+    last_theta: Option<Angle>,
     running_for: u32,
 }
 
@@ -185,8 +210,11 @@ pub(crate) struct Signals {
     pub i_abc: Abc,
     /// Each phase's mean squared current over the period (Q8.12 squares, [`phase_power`]).
     pub power: [u32; 3],
-    /// The estimated speed at the last sample.
+    /// The estimated speed at the last sample, and its mean over the period.
     pub omega: Pu,
+    pub omega_mean: Pu,
+    /// The estimated angle at the last sample.
+    pub theta_est: Angle,
     pub omega_ref: Pu,
     /// The speed loop's current reference.
     pub iq_ref: Pu,
@@ -223,6 +251,31 @@ impl Monitor {
             .or_else(|| self.check_health(c, s))
             .or_else(|| self.check_motion(c, s, speed))
             .or_else(|| self.check_tracking(c, s))
+            .or_else(|| self.check_against(c, s))
+    }
+
+    /// Loss of lock: the estimated angle turns against the estimated speed. The estimators
+    /// whose angle is the integral of their speed (the MRAS on the currents) never trip it;
+    /// those that read the angle off the EMF and the speed off its size (the NLO, the AO, the
+    /// MRAS on the EMF) can settle on the mirror solution, `θ + π` turning forwards for a
+    /// rotor at `θ` turning backwards, and there the two disagree in sign.
+    fn check_against(&mut self, c: &MonitorConfig, s: &Signals) -> Option<Fault> {
+        let last = core::mem::replace(&mut self.last_theta, s.running.then_some(s.theta_est));
+        // The angle's turn over the period (a wrapping difference), as a speed in Pu bits:
+        // |turn| < 2³¹ and k < 2²³ (ω_b T ≥ 2⁻¹¹), the product fits an i64.
+        let turn = last.map_or(0, |l| s.theta_est.0.wrapping_sub(l.0));
+        let by_angle = (i64::from(turn) * c.turn_to_pu_q16) >> 16;
+        let (floor, omega) = (
+            i64::from(c.against_speed.to_bits()),
+            i64::from(s.omega_mean.to_bits()),
+        );
+        let against = (by_angle > floor && omega < -floor) || (by_angle < -floor && omega > floor);
+        self.against = if last.is_some() && against && omega.unsigned_abs() <= c.against_turn {
+            self.against.saturating_add(by_angle.abs_diff(omega))
+        } else {
+            0
+        };
+        (self.against > c.against_turn).then_some(Fault::LossOfLock)
     }
 
     /// Phase loss.

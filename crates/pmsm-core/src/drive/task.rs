@@ -412,6 +412,8 @@ impl DriveTask {
             i_abc: w.i_abc,
             power: w.power,
             omega: w.omega,
+            omega_mean: w.omega_mean,
+            theta_est: w.theta_est,
             omega_ref: self.speed_ref_run,
             iq_ref: self.iq_ref,
             running,

@@ -11,12 +11,22 @@ fn config() -> DriveConfig {
     DriveConfig::from_params(&motor_b(), &inverter_b(), 14e3, options).unwrap()
 }
 
-/// A steady closed loop's signals at the estimated speed `omega` (per unit).
+/// The estimated angle's turn per sample at the speed `omega` (per unit).
+fn turn_of(omega: f64) -> Angle {
+    let c = config();
+    let rad = omega * c.base.omega_e_rad_s * c.base.sample_s;
+    Angle((rad / core::f64::consts::TAU * 4_294_967_296.0).round() as i64 as i32)
+}
+
+/// A steady closed loop's signals at the estimated speed `omega` (per unit), its angle still
+/// (which the angle's check takes as no evidence).
 fn steady(omega: f64) -> Signals {
     Signals {
         i_abc: Abc::default(),
         power: [0; 3],
         omega: pu_from_f64(omega),
+        omega_mean: pu_from_f64(omega),
+        theta_est: Angle::ZERO,
         omega_ref: Pu::ZERO,
         iq_ref: Pu::ZERO,
         running: true,
@@ -198,4 +208,69 @@ fn a_rotor_driven_backwards_trips_within_its_time() {
         let f = run(-0.8, -limit, reversal, n).map(|x| x.1);
         assert_ne!(f, Some(Fault::DrivenBackwards), "{span_s} s");
     }
+}
+
+/// The estimated angle turning at `by_angle` while the estimated speed says `omega` (both per
+/// unit); the sample of the first fault within `n` samples.
+fn against(omega: f64, by_angle: f64, n: u32) -> Option<(u32, Fault)> {
+    let turn = turn_of(by_angle);
+    periods(n, |k| Signals {
+        theta_est: Angle(turn.0.wrapping_mul(k as i32)),
+        ..steady(omega)
+    })
+}
+
+#[test]
+fn an_angle_turning_against_the_speed_trips_within_a_quarter_turn() {
+    let c = config();
+    // Samples for the two speeds' difference to turn the angle a quarter turn away.
+    let quarter = |apart: f64| {
+        core::f64::consts::FRAC_PI_2 / (apart * c.base.omega_e_rad_s * c.base.sample_s)
+    };
+    for (omega, by_angle) in [(0.2, -0.2), (-0.1, 0.3), (0.05, -0.05)] {
+        let (k, f) = against(omega, by_angle, 20_000).expect("trips");
+        assert_eq!(f, Fault::LossOfLock);
+        let due = quarter(f64::abs(omega - by_angle));
+        assert!(
+            (k as f64) <= due + 2.0 * TASK_PERIOD as f64,
+            "{omega} against {by_angle}: sample {k}, a quarter turn at {due:.0}"
+        );
+        assert!(
+            (k as f64) >= due - 2.0 * TASK_PERIOD as f64,
+            "too early: {k} < {due:.0}"
+        );
+    }
+    // A mirror solution at a tenth of base speed ends within 50 ms.
+    let (k, _) = against(0.1, -0.1, 20_000).expect("trips");
+    assert!(f64::from(k) * c.base.sample_s < 0.05, "sample {k}");
+}
+
+#[test]
+fn an_angle_turning_with_the_speed_or_below_the_floor_never_trips() {
+    // One second each: the angle with the speed (a lagging or leading estimate too), and
+    // the two against each other below 0.03 pu (the jitter about standstill).
+    for (omega, by_angle) in [
+        (0.2, 0.2),
+        (0.5, 0.3),
+        (-0.4, -0.6),
+        (0.02, -0.02),
+        (-0.025, 0.5),
+    ] {
+        assert_eq!(
+            against(omega, by_angle, 14_000),
+            None,
+            "{omega} / {by_angle}"
+        );
+    }
+    // Above a quarter turn a task period it is not judged: at 5.5 pu (3.2 rad a period) the
+    // angle's wrapped turn reads backwards.
+    assert_eq!(against(5.5, 5.5, 14_000), None);
+    // Out of the closed loop (the open loop's frame is imposed) it is not judged.
+    let turn = turn_of(-0.3);
+    let out = periods(14_000, |k| Signals {
+        theta_est: Angle(turn.0.wrapping_mul(k as i32)),
+        running: false,
+        ..steady(0.3)
+    });
+    assert_eq!(out, None);
 }
