@@ -11,7 +11,9 @@
 //!   measure an option against the defaults), `--check` fails below the bars, `--write`
 //!   rewrites the section of `docs/PERFORMANCE.md`. `cargo xtask family [N] --seeds A-B
 //!   [--write]`: the same on every seed from A to B, summed (its own section, which `perf`
-//!   keeps).
+//!   keeps). `cargo xtask family --published [--held-out | --file PATH] [--check] [--write]`:
+//!   the motors of `examples/published/` (`published.rs`); `cargo xtask family [N] --widened
+//!   [--seeds A-B] [--check] [--write]`: motors drawn from classes written from them.
 //! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
 //!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
@@ -31,6 +33,7 @@ mod observers_motor_a;
 mod pil;
 mod plant_speed;
 mod progress;
+mod published;
 mod robustness;
 mod sweep;
 
@@ -132,7 +135,7 @@ fn perf() -> Result<()> {
          Regenerate with `cargo xtask perf` (release build, a few minutes on 2 cores). \
          Every figure below is measured by that command; none is typed by hand.\n\n",
     );
-    let stages: [Stage; 12] = [
+    let stages: [Stage; 14] = [
         ("measuring the accuracy of the fixed-point numerics", || {
             Ok(accuracy::section())
         }),
@@ -157,6 +160,15 @@ fn perf() -> Result<()> {
         // The family on many seeds is `cargo xtask family 40 --seeds 1-30`'s (a quarter of an
         // hour): kept as it is.
         ("", || Ok(family_seeds::kept_section())),
+        ("the drive on published motors", || {
+            let (table, _) = published::section(published::MOTORS, &[])?;
+            Ok(format!("{}\n\n{table}\n", published::SECTION_TITLE))
+        }),
+        ("the drive on the widened family", || {
+            let (table, _) =
+                published::widened_section(published::WIDENED_MOTORS, published::WIDENED_SEEDS)?;
+            Ok(format!("{}\n\n{table}\n", published::WIDENED_TITLE))
+        }),
         ("counting instructions in QEMU (scripts/pil.sh)", || {
             Ok(pil::section())
         }),

@@ -127,8 +127,8 @@ pub fn report(
                     "out of the bars, {w}: speed error {:.1} % of rated, angle error {a:.3} rad rms",
                     100.0 * sp
                 ),
-                Outcome::Silent(t, phase) => {
-                    format!("**silent** from {t:.3} s ({phase})")
+                Outcome::Silent(t, phase, by) => {
+                    format!("**silent** ({by}) from {t:.3} s ({phase})")
                 }
             };
             let _ = writeln!(
