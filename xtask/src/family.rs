@@ -241,14 +241,7 @@ pub fn run_all(
     if !errors.is_empty() {
         bail!("runs that could not be built:\n{}", errors.join("\n"));
     }
-    if results.iter().all(|r| r.outcome == Outcome::Holds) {
-        std::fs::remove_dir_all(&dir).ok();
-    } else {
-        progress::eprintln(format_args!(
-            "the scenarios of the runs that did not hold: {}",
-            dir.display()
-        ));
-    }
+    keep_failed(&dir, results.iter().all(|r| r.outcome == Outcome::Holds));
     results.sort_by_key(|r| {
         (
             r.motor,
@@ -360,21 +353,14 @@ pub fn section_span(doc: &str, title: &str) -> Option<(usize, usize)> {
 
 /// Replaces the section in `doc` (up to the next `## ` title), or appends it.
 pub fn replace_section(doc: &str, section: &str) -> String {
-    match section_span(doc, SECTION_TITLE) {
-        Some((a, b)) => format!("{}{section}{}", &doc[..a], &doc[b..]),
-        // Where `cargo xtask perf` puts it: before the instruction counts.
-        None => match doc.find("## Instructions per call") {
-            Some(k) => format!("{}{section}{}", &doc[..k], &doc[k..]),
-            None => format!("{}\n\n{section}", doc.trim_end_matches('\n')),
-        },
-    }
+    put_section(doc, SECTION_TITLE, section)
 }
 
 /// The arguments of `cargo xtask family`.
 pub const USAGE: &str = "family [N] [--seed S] [--estimator NAME]... [--control KEY=VALUE]... [--check] [--write] | family [N] --seeds A-B [--write] | family --published [--held-out | --file PATH] [--control KEY=VALUE]... [--check] [--write] | family [N] --widened [--seeds A-B] [--check] [--write]";
 
-/// `doc` with the section titled `title` replaced by `section`, or `section` put after the
-/// random family's sections (before the instruction counts), or at the end.
+/// `doc` with the section titled `title` replaced by `section`, or `section` put where
+/// `cargo xtask perf` puts it: before the instruction counts (or at the end).
 pub(crate) fn put_section(doc: &str, title: &str, section: &str) -> String {
     match section_span(doc, title) {
         Some((a, b)) => format!("{}{section}{}", &doc[..a], &doc[b..]),
@@ -382,6 +368,28 @@ pub(crate) fn put_section(doc: &str, title: &str, section: &str) -> String {
             Some(k) => format!("{}{section}{}", &doc[..k], &doc[k..]),
             None => format!("{}\n\n{section}", doc.trim_end_matches('\n')),
         },
+    }
+}
+
+/// Rewrites docs/PERFORMANCE.md with `doc_with(its text)` and says so (`--write`).
+pub(crate) fn write_performance(doc_with: impl FnOnce(&str) -> String) -> Result<()> {
+    let path = crate::root().join("docs/PERFORMANCE.md");
+    let doc = std::fs::read_to_string(&path)?;
+    std::fs::write(&path, doc_with(&doc))?;
+    eprintln!("wrote the section to {}", path.display());
+    Ok(())
+}
+
+/// Removes a run's scratch directory of scenarios when every run held, else says where the
+/// scenarios of the runs that did not hold are kept.
+pub(crate) fn keep_failed(dir: &std::path::Path, all_held: bool) {
+    if all_held {
+        std::fs::remove_dir_all(dir).ok();
+    } else {
+        progress::eprintln(format_args!(
+            "the scenarios of the runs that did not hold: {}",
+            dir.display()
+        ));
     }
 }
 
@@ -441,10 +449,7 @@ pub fn main(args: &[String]) -> Result<()> {
         let section = crate::family_seeds::section(n, seeds)?;
         print!("{section}");
         if write {
-            let path = crate::root().join("docs/PERFORMANCE.md");
-            let doc = std::fs::read_to_string(&path)?;
-            std::fs::write(&path, crate::family_seeds::replace_section(&doc, &section))?;
-            eprintln!("wrote the section to {}", path.display());
+            write_performance(|doc| crate::family_seeds::replace_section(doc, &section))?;
         }
         return Ok(());
     }
@@ -459,10 +464,7 @@ pub fn main(args: &[String]) -> Result<()> {
     let (section, missed) = section(n, seed, &estimators, &control)?;
     print!("{section}");
     if write {
-        let path = crate::root().join("docs/PERFORMANCE.md");
-        let doc = std::fs::read_to_string(&path)?;
-        std::fs::write(&path, replace_section(&doc, &section))?;
-        eprintln!("wrote the section to {}", path.display());
+        write_performance(|doc| replace_section(doc, &section))?;
     }
     if check_bars && !missed.is_empty() {
         bail!("the family misses its bars: {}", missed.join("; "));

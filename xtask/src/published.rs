@@ -445,14 +445,7 @@ pub fn section(file: &str, control: &[String]) -> Result<(String, Vec<String>)> 
     if silent > 0 {
         missed.push(format!("{silent} silent runs"));
     }
-    if missed.is_empty() {
-        std::fs::remove_dir_all(&dir).ok();
-    } else {
-        progress::eprintln(format_args!(
-            "the scenarios of the runs that did not hold: {}",
-            dir.display()
-        ));
-    }
+    crate::family::keep_failed(&dir, missed.is_empty());
     Ok((s, missed))
 }
 

@@ -38,13 +38,9 @@ pub fn widened_main(args: &[String]) -> Result<()> {
     let section = format!("{}\n\n{table}\n", super::WIDENED_TITLE);
     print!("{section}");
     if write {
-        let path = crate::root().join("docs/PERFORMANCE.md");
-        let doc = std::fs::read_to_string(&path)?;
-        std::fs::write(
-            &path,
-            crate::family::put_section(&doc, super::WIDENED_TITLE, &section),
-        )?;
-        eprintln!("wrote the section to {}", path.display());
+        crate::family::write_performance(|doc| {
+            crate::family::put_section(doc, super::WIDENED_TITLE, &section)
+        })?;
     }
     if check_bars && !missed.is_empty() {
         bail!("the widened family misses its bars:\n{}", missed.join("\n"));
@@ -88,13 +84,9 @@ pub fn published_main(args: &[String]) -> Result<()> {
     let section = format!("{}\n\n{table}\n", super::SECTION_TITLE);
     print!("{section}");
     if write {
-        let path = crate::root().join("docs/PERFORMANCE.md");
-        let doc = std::fs::read_to_string(&path)?;
-        std::fs::write(
-            &path,
-            crate::family::put_section(&doc, super::SECTION_TITLE, &section),
-        )?;
-        eprintln!("wrote the section to {}", path.display());
+        crate::family::write_performance(|doc| {
+            crate::family::put_section(doc, super::SECTION_TITLE, &section)
+        })?;
     }
     if check_bars && !missed.is_empty() {
         bail!(

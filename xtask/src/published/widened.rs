@@ -141,14 +141,7 @@ pub fn widened_section(n: usize, seeds: (u64, u64)) -> Result<(String, Vec<Strin
     if silent > 0 {
         missed.push(format!("{silent} silent runs"));
     }
-    if missed.is_empty() {
-        std::fs::remove_dir_all(&dir).ok();
-    } else {
-        progress::eprintln(format_args!(
-            "the scenarios of the runs that did not hold: {}",
-            dir.display()
-        ));
-    }
+    crate::family::keep_failed(&dir, missed.is_empty());
     Ok((s, missed))
 }
 
