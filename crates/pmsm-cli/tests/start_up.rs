@@ -201,7 +201,7 @@ fn the_alignment_takes_the_angle_where_the_current_points() {
         rated_speed_rpm = 1065 }\n\
         [inverter]\nvdc_v = 540.0\npwm_hz = 15000.0\ndead_time_s = 2.87e-6\nmodel = \"switching\"\n\
         [control]\nobserver = \"mras-current\"\ndeadtime_compensation = true\n\
-        [initial]\ntheta_e_deg = 255.275\n\
+        [initial]\ntheta_e_deg = 250.0\n\
         [speed_ref]\nt_s = [0.0, 0.6, 0.676]\nrpm = [0.0, 0.0, 532.5]\n";
     let rows = run_scenario(&scenario_text("align-angle", text))
         .unwrap()

@@ -93,7 +93,6 @@ pub struct DriveIsr {
     /// compensation's vector.
     frame_omega: Pu,
     v_dt: AlphaBeta,
-    last_input: DriveInput,
     /// `1/v_dc` and the voltage circle of the last bus reading, for the modulator.
     inv_vdc: BusReciprocal,
     /// `V_dead/3`, `V_dead/√3` of the last bus reading, for the dead-time vector.
@@ -142,7 +141,6 @@ impl DriveIsr {
             telemetry: Telemetry::default(),
             frame_omega: Pu::ZERO,
             v_dt: AlphaBeta::default(),
-            last_input: DriveInput::default(),
             inv_vdc: BusReciprocal::default(),
             deadtime_bus: DeadTimeBus::default(),
             since_trip: 0,
@@ -232,12 +230,10 @@ impl DriveIsr {
         if handoff.command.published() != self.command {
             self.take(handoff);
         }
-        self.last_input = *input;
         let out = self.sample(input);
-        self.tick += 1;
-        if self.tick >= TASK_PERIOD {
-            self.tick = 0;
-            self.end_period(handoff);
+        self.tick = (self.tick + 1) & (TASK_PERIOD - 1);
+        if self.tick == 0 {
+            self.end_period(handoff, input);
         }
         out
     }

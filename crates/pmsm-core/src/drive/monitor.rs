@@ -503,13 +503,14 @@ pub(crate) fn follow_nonnegative(y: i32, x: i32, k: u32) -> i32 {
     y.wrapping_add(x.wrapping_sub(y) >> k)
 }
 
-/// `i²` of a phase current in Q8.12 squares (`(i·2¹²)²`, the current clamped to ±8 pu, far
-/// beyond any overcurrent trip): a 32-bit product on every core, and three of them sum
-/// below 2³² (each ≤ 2³⁰).
+/// `i²` of a phase current in Q8.12 squares (`(i·2¹²)²`, the current saturated to ±8 pu, far
+/// beyond any overcurrent trip, by a signed 16-bit saturation: one instruction on the
+/// Cortex-M4): a 32-bit product on every core, and three of them sum below 2³² (each
+/// ≤ 2³⁰).
 #[inline(always)]
 pub(crate) fn phase_power(i: Pu) -> u32 {
-    let a = (i.to_bits().unsigned_abs() >> 12).min(1 << 15);
-    a * a
+    let a = (i.to_bits() >> 12).clamp(-(1 << 15), (1 << 15) - 1);
+    a.wrapping_mul(a) as u32
 }
 
 #[cfg(test)]

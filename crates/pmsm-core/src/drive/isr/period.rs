@@ -6,7 +6,7 @@ use crate::angle::Angle;
 use crate::deadtime::DeadTimeBus;
 use crate::drive::TASK_PERIOD;
 use crate::drive::handoff::Handoff;
-use crate::drive::interface::Fault;
+use crate::drive::interface::{DriveInput, Fault};
 use crate::drive::messages::{Command, Mode, ModelUpdate, Status, Window};
 use crate::drive::startup::OpenLoop;
 use crate::frames::AlphaBeta;
@@ -20,18 +20,18 @@ impl DriveIsr {
     /// window), the window of the samples that ran published. (Off or tripped, a late
     /// answer is no overrun: no sample of control depends on when.)
     #[inline(never)]
-    pub(super) fn end_period(&mut self, handoff: &Handoff) {
+    pub(super) fn end_period(&mut self, handoff: &Handoff, input: &DriveInput) {
         if self.answered != self.window && self.active() {
             self.trip(Fault::Overrun);
         }
-        let window = self.window();
+        let window = self.window(input);
         self.window = handoff.window.publish(&window);
         self.omega_sum = 0;
         self.power_sum = [0; 3];
     }
 
-    /// What the task sees of the period that ends.
-    fn window(&self) -> Window {
+    /// What the task sees of the period that ends, `input` its last sample's.
+    fn window(&self, input: &DriveInput) -> Window {
         let t = &self.telemetry;
         Window {
             epoch: self.epoch,
@@ -66,8 +66,8 @@ impl DriveIsr {
             v_est: self.v_est,
             v_dt: self.v_dt,
             saturated: t.saturated,
-            i_abc: self.last_input.i_abc,
-            vdc: self.last_input.vdc,
+            i_abc: input.i_abc,
+            vdc: input.vdc,
             power: self.power_sum,
         }
     }
