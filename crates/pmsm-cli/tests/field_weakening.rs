@@ -5,8 +5,8 @@
 //! scenario through `pmsm simulate`'s own code.
 
 use pmsm_cli::commands::simulate::stats::{self, rms_angle, speed_err, window};
-use pmsm_cli::commands::simulate::{Row, Run, run_scenario};
-use pmsm_core::{DriveState, Fault};
+use pmsm_cli::commands::simulate::{Row, Run, build_drive, run_scenario};
+use pmsm_core::{DriveState, Fault, FluxDesign};
 
 mod common;
 use common::example_edited as scenario;
@@ -25,11 +25,17 @@ fn mean(rows: &[&Row], f: impl Fn(&Row) -> f64) -> f64 {
     rows.iter().map(|r| f(r)).sum::<f64>() / rows.len() as f64
 }
 
-/// Motor B at its rated point (3000 r/min, 4 N·m, 540 V): at least 2950 r/min with field
-/// weakening, where i_d = 0 settles far below.
+/// Motor B at its rated point (3000 r/min, 4 N·m, 540 V): at least 2950 r/min with the
+/// drive's defaults (MTPA and field weakening on: the scenario's keys for them taken out),
+/// where i_d = 0 settles far below.
 #[test]
 fn motor_b_reaches_rated_speed_under_rated_load() {
-    let run = run_scenario(&scenario("b-3000rpm-fw.toml", &[])).unwrap();
+    let sc = scenario(
+        "b-3000rpm-fw.toml",
+        &[("mtpa = true\n", ""), ("field_weakening = true\n", "")],
+    );
+    assert_eq!(build_drive(&sc).unwrap().config.design.flux, FluxDesign::ON);
+    let run = run_scenario(&sc).unwrap();
     no_fault(&run);
     let tail = window(&run.rows, 2.5, 3.0);
     let speed = mean(&tail, |r| r.speed_rpm);

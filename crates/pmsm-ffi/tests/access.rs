@@ -192,8 +192,8 @@ fn the_detected_angle_and_the_telemetry_are_readable() {
         dq_err += (pu(t.i_q) - pu(t.i_q_ref)).abs() / WINDOW as f64;
         dd_err += (pu(t.i_d) - pu(t.i_d_ref)).abs() / WINDOW as f64;
         // The d reference is the light-load current at this light load, once the low-speed
-        // current of the start has faded under it (the window's first 2 ms: 0.01 pu left).
-        if k >= 28 {
+        // current of the start has faded under it (the window's first 3 ms: 0.01 pu left).
+        if k >= 40 {
             assert!(pu(t.i_d_ref) < 0.0, "{k}: {t:?}");
         }
     }

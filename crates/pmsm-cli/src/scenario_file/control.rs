@@ -148,13 +148,13 @@ pub struct Control {
     pub pwm_delay_compensation_periods: Option<u32>,
     /// Motor file the drive is designed from (`scenario_extras`); the plant keeps `motor`.
     pub model_motor: Option<String>,
-    /// Maximum torque per ampere for interior motors (default false: `i_d = 0`).
-    #[serde(default)]
-    pub mtpa: bool,
+    /// Maximum torque per ampere for interior motors (`pmsm_core::FluxDesign::mtpa`; default:
+    /// the drive's, computed from the motor).
+    pub mtpa: Option<bool>,
     /// Field weakening by voltage feedback, and the speed reference clamped to the maximum
-    /// speed (default false).
-    #[serde(default)]
-    pub field_weakening: bool,
+    /// speed (`pmsm_core::FluxDesign::field_weakening`; default: the drive's, computed from
+    /// the motor and the bus).
+    pub field_weakening: Option<bool>,
     /// Overmodulation up to six-step beyond the modulator's circle (default false).
     #[serde(default)]
     pub overmodulation: bool,
@@ -183,13 +183,12 @@ pub struct Control {
     /// which current's sign").
     pub deadtime_current: Option<DeadTimeCurrent>,
     /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
-    /// default false).
-    #[serde(default)]
-    pub tracking: bool,
+    /// default: the drive's, `pmsm_core::DriveDesign::tracking`, off).
+    pub tracking: Option<bool>,
     /// Learn the inverter's distortion voltage while running and rescale the dead-time
-    /// compensation to it (`pmsm_core::DistortionLearner`, docs/distortion.md; default off).
-    #[serde(default)]
-    pub deadtime_learning: bool,
+    /// compensation to it (`pmsm_core::DistortionLearner`, docs/distortion.md; default: the
+    /// drive's, `pmsm_core::DriveDesign::deadtime_learning`).
+    pub deadtime_learning: Option<bool>,
 }
 
 impl Control {

@@ -39,8 +39,8 @@
 //!                                  # current limit, faded out at a fifth of rated speed)
 //! health_limit_pu = 0.5            # trip on the estimator's health figure in steady state
 //!                                  # (default 1.0; 0 = off)
-//! mtpa = true                      # optional: maximum torque per ampere (interior motors)
-//! field_weakening = true           # optional: field weakening, speed clamped to the maximum
+//! mtpa = false                     # maximum torque per ampere on interior motors (default on)
+//! field_weakening = false          # field weakening, speed clamped to the maximum (default on)
 //! overmodulation = true            # optional: beyond the circle up to six-step
 //!
 //! [initial]

@@ -91,7 +91,8 @@ pub const VOLTAGE_MARGIN_OVERMODULATING: f64 = 0.937_5;
 /// a call of some 25 instructions on ARMv6-M).
 const V_SHIFT: u32 = 11;
 
-/// How the d-axis reference is made (both off by default: the paper's `i_d = 0`).
+/// How the d-axis reference is made. `Default` is both off (the paper's `i_d = 0`);
+/// [`crate::DriveDesign::default_for`] turns both on ([`FluxDesign::ON`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FluxDesign {
     /// MTPA below base speed for interior motors (surface motors keep `i_d = 0`).
@@ -149,6 +150,21 @@ pub fn mtpa_id_f64(psi: f64, ld: f64, lq: f64, iq: f64) -> f64 {
     // Written as −i_q²/(a + sgn(a)√(a² + i_q²)): no cancellation for small i_q.
     let r = libm::sqrt(a * a + iq * iq);
     -iq * iq / (a + a.signum() * r)
+}
+
+/// The deepest d current field weakening uses, `I_d,lim` (all per unit or all SI
+/// consistently): the current limit `i_max`, no more than `ψ/L_d` (the flux cancelled), and no
+/// more than `L_d v_lim²/(R² ψ)`, beyond which the resistive drop of the d current costs more
+/// voltage than its flux frees (the maximum over `i` of `√(v_lim² − (R i)²)/(ψ − L_d i)`, the
+/// no-load speed at `i_d = −i`; docs/field-weakening.md §3). A gimbal motor, whose `R I_max`
+/// is most of the bus, stops there well short of its current limit.
+pub fn weakening_current_f64(psi: f64, ld: f64, r: f64, i_max: f64, v_lim: f64) -> f64 {
+    let best = if r > 0.0 && psi > 0.0 {
+        ld * v_lim * v_lim / (r * r * psi)
+    } else {
+        f64::INFINITY
+    };
+    i_max.min(psi / ld).min(best)
 }
 
 /// The speed at which the no-load voltage at `i_d = −i_d_lim` reaches `v_lim` (all per unit
@@ -213,17 +229,17 @@ impl FluxConfig {
         } else {
             (0, Coef::ZERO)
         };
-        let id_lim = if design.field_weakening {
-            i_max.min(psi / ld)
-        } else {
-            0.0
-        };
         // The nominal bus: V_max = V_b (m = 1), or six-step's fundamental.
         let overmodulating = v_lim_pu > 1.0;
         let margin = if overmodulating {
             VOLTAGE_MARGIN_OVERMODULATING
         } else {
             VOLTAGE_MARGIN
+        };
+        let id_lim = if design.field_weakening {
+            weakening_current_f64(psi, ld, r, i_max, margin * v_lim_pu)
+        } else {
+            0.0
         };
         let max_pu = max_speed_f64(psi, ld, r, id_lim, margin * v_lim_pu, SPEED_CAP_PER_BASE);
         Ok(Self {

@@ -488,19 +488,21 @@ pub const OVERSPEED_FACTOR: f64 = 1.15;
 
 /// The overspeed threshold, per unit: [`OVERSPEED_FACTOR`] times the highest speed at which
 /// the drive can still hold the no-load voltage within the circle at the nominal bus, i.e.
-/// with `i_d = −min(I_max, ψ/L_d)` under field weakening, `i_d = 0` without (where the EMF
-/// `ωψ` reaches `V_DC/√3`, the bus the diodes would rectify into). Never below 1.2 pu.
+/// with `i_d = −I_d,lim` (`weakening_current_f64`) under field weakening, `i_d = 0` without
+/// (where the EMF `ωψ` reaches `V_DC/√3`, the bus the diodes would rectify into). Never below
+/// 1.2 pu.
 fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f64 {
     let i_max = design.speed.current_limit_a / base.current_a;
     let ld = motor.ld_h / base.inductance_h;
     let psi = motor.flux_wb / base.flux_wb;
     let r = motor.rs_ohm / base.impedance_ohm;
+    let v_lim = voltage_limit_pu(design);
     let id_lim = if design.flux.field_weakening {
-        i_max.min(psi / ld)
+        crate::control::flux::weakening_current_f64(psi, ld, r, i_max, v_lim)
     } else {
         0.0
     };
     let cap = crate::control::flux::SPEED_CAP_PER_BASE;
-    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, voltage_limit_pu(design), cap);
+    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, v_lim, cap);
     (OVERSPEED_FACTOR * w).max(1.2).min(cap)
 }

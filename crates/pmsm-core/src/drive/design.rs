@@ -225,7 +225,8 @@ pub struct DriveDesign {
     /// dead-time compensation does, and the other estimators ignore it.
     pub zero_crossing_hold: bool,
     /// Track the motor's `R` and `ψ` while running and rewrite the drive's model with them
-    /// (the task's [`super::Tracker`], docs/tracking.md).
+    /// (the task's [`super::Tracker`], docs/tracking.md). Default off (docs/tracking.md, "Off by
+    /// default").
     pub tracking: bool,
     /// Learn the inverter's distortion voltage while running and rescale the dead-time
     /// compensation (the task's [`super::DistortionLearner`], docs/distortion.md).
@@ -339,7 +340,7 @@ impl DriveDesign {
                 d
             },
             protection: Protection::default_for(inverter, base),
-            flux: FluxDesign::default(),
+            flux: FluxDesign::ON,
             overmodulation: false,
             pwm_delay_samples: 0,
             // The current-model MRAS runs from standstill, where the compensation's error is

@@ -287,13 +287,9 @@ fn bench_drive_sides(
 }
 
 /// The drive of the `drive` case with MTPA and field weakening on (their updates in the
-/// task: docs/field-weakening.md, "Cost"), started. Fed currents recorded with the default drive's
-/// d reference, its estimator sees voltages that did not make them, and its estimated speed
-/// leaves the recorded one (by 0.35 pu on motor B's run): what is measured is the cost of its
-/// steps on that trajectory, not on one it would run itself. (In a trial build with the PI
-/// speed loop and the current-model MRAS's low-speed schedule as defaults, the same replay
-/// went into steps with the voltage on the circle that cost up to 1808 instructions on the
-/// Cortex-M4 and 5107 on the Cortex-M0.)
+/// task: docs/field-weakening.md, "Cost"), started. Both are the drive's defaults, so this is
+/// the `drive` case's own drive, written out so that `isr_flux` keeps measuring them whatever
+/// the defaults become.
 #[inline(never)]
 fn drive_with_flux() -> Option<DriveConfig> {
     edited_config(|design, _| design.flux = FluxDesign::ON)

@@ -159,10 +159,11 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     if let Some(h) = c.health_limit_pu {
         design.protection.health_limit_pu = (h > 0.0).then_some(h);
     }
-    design.tracking = c.tracking;
-    design.deadtime_learning = c.deadtime_learning;
-    design.flux.mtpa = c.mtpa;
-    design.flux.field_weakening = c.field_weakening;
+    let set = |x: &mut bool, on: Option<bool>| *x = on.unwrap_or(*x);
+    set(&mut design.tracking, c.tracking);
+    set(&mut design.deadtime_learning, c.deadtime_learning);
+    set(&mut design.flux.mtpa, c.mtpa);
+    set(&mut design.flux.field_weakening, c.field_weakening);
     design.overmodulation = c.overmodulation;
     design.deadtime.device.v_sat_v = sc.inverter.v_sat_v;
     design.deadtime.device.v_f_v = sc.inverter.v_f_v;
