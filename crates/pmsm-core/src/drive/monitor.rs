@@ -233,6 +233,13 @@ impl Monitor {
         *self = Self::default();
     }
 
+    /// Whether the closed loop has run no longer than the checks' settling time
+    /// ([`MonitorConfig::settle_samples`], 100 ms), in which the checks of the closed loop
+    /// stay quiet.
+    pub fn settling(&self, c: &MonitorConfig) -> bool {
+        self.running_for <= c.settle_samples
+    }
+
     /// One task period of every check; the first fault found.
     pub fn check(&mut self, c: &MonitorConfig, s: &Signals) -> Option<Fault> {
         let ph = [s.i_abc.a, s.i_abc.b, s.i_abc.c];

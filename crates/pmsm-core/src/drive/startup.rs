@@ -44,6 +44,14 @@
 //! runs and the MRAS on the EMF from 276 to 293, the NLO (301) and the current-model MRAS
 //! unchanged.
 //!
+//! A load strong enough to turn the rotor against the open loop's current leaves the frame
+//! and the rotor turning opposite ways, and the estimate handed over lies about the rotor's
+//! mirror: in the closed loop it soon turns against the reference again. That return to the
+//! open loop within the checks' settling time of a handover for a reference of the same sign
+//! is no reversal but a lost lock, and the task names it (`Fault::LossOfLock`): passed back
+//! through the open loop each time, the drive handed over every few milliseconds, each
+//! handover resetting the checks, and never tripped.
+//!
 //! # Alignment
 //!
 //! The d current first along a quarter turn ahead of `θ = 0`, ramped up over the first eighth

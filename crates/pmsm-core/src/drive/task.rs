@@ -88,6 +88,8 @@ pub struct DriveTask {
     zero_crossing: ZeroCrossing,
     /// Task periods the handover has waited for the estimate.
     waited: u32,
+    /// Whether the speed reference was negative at the last handover into the closed loop.
+    handed_over_negative: bool,
     #[cfg(feature = "tracking")]
     tracker: Option<Tracker>,
     #[cfg(feature = "distortion-learner")]
@@ -163,6 +165,7 @@ impl DriveTask {
             deadtime_scale: SCALE_ONE,
             zero_crossing: ZeroCrossing::default(),
             waited: 0,
+            handed_over_negative: false,
             #[cfg(feature = "tracking")]
             tracker,
             #[cfg(feature = "distortion-learner")]
@@ -453,6 +456,17 @@ impl DriveTask {
         if c.estimator.needs_open_loop_start() && (omega_ref.to_bits() ^ w.omega.to_bits()) < 0 {
             let h = c.handover_speed;
             if self.speed_filtered.saturating_abs() <= h.saturating_add(h >> 2) {
+                // Within the checks' settling time of a handover made for a reference of this
+                // sign, the estimate has turned against the frame it was handed: the rotor is
+                // not where the open loop left it (a load that overpowered the open-loop
+                // current turned it the other way, and the estimate wanders about its mirror).
+                // Another pass through the open loop would hand over again, resetting the
+                // checks each time: a lost lock.
+                if self.monitor.settling(&c.monitor)
+                    && (omega_ref < Pu::ZERO) == self.handed_over_negative
+                {
+                    return self.fault(Fault::LossOfLock);
+                }
                 self.waited = 0;
                 let mode = Mode::Reverse {
                     omega: self.speed_filtered,

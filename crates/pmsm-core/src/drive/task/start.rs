@@ -138,6 +138,7 @@ impl DriveTask {
             Err(f) => return self.fault(f),
         };
         let c = &self.config;
+        self.handed_over_negative = self.speed_ref_run < Pu::ZERO;
         self.speed_filtered = w.omega;
         self.speed.reset(w.omega, iq);
         self.iq_ref = iq;
