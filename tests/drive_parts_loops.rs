@@ -3,11 +3,12 @@
 //! as is, held over the sample), true angle and speed.
 
 use pmsm_core::Dq;
+use pmsm_core::tuning::{IP_FORM, PI_FORM};
 use pmsm_core::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput};
-use pmsm_core::{IP_FORM, PI_FORM, SpeedConfig, SpeedController, SpeedDesign};
 use pmsm_core::{PerUnit, to_f64};
 use pmsm_core::{Pi, PiConfig};
 use pmsm_core::{Pu, pu_from_f64};
+use pmsm_core::{SpeedConfig, SpeedController, SpeedDesign};
 use pmsm_plant::{Mechanics, Motor, MotorModel, Saturation};
 use pmsm_tests::drive_ref::{
     PiRef, SQRT3, inverse_park, inverter_b, motor_b, park, rpm_to_omega_e,

@@ -69,7 +69,7 @@ fn compare(
         ts,
         g,
         b.omega_e_rad_s,
-        pmsm_core::MRAS_EMF_PAPER_CONSTANTS,
+        pmsm_core::tuning::MRAS_EMF_PAPER_CONSTANTS,
     );
     [
         diff(&nlo, &run_ref(|i, v| rn.update(i, v), &s)),
@@ -261,10 +261,10 @@ fn gains_that_break_the_discrete_observer_are_rejected() {
     // ratio to c2.
     let c = MrasEmfConfig::default_for(&m, &b, 1000.0).unwrap();
     let [c1, c2, c3] = c.constants;
-    let paper = pmsm_core::MRAS_EMF_PAPER_CONSTANTS;
+    let paper = pmsm_core::tuning::MRAS_EMF_PAPER_CONSTANTS;
     assert!((c3 - paper[2]).abs() <= 1e-12, "{:?}", c.constants);
     let slow_root = m.flux_wb * m.flux_wb * c2 * c3;
-    let root_ts = pmsm_core::MRAS_EMF_ADAPTATION_BANDWIDTH_TS;
+    let root_ts = pmsm_core::tuning::MRAS_EMF_ADAPTATION_BANDWIDTH_TS;
     assert!((root_ts - 0.025).abs() < 1e-12);
     assert!(
         (slow_root * b.sample_s - root_ts).abs() < 1e-9,
@@ -323,7 +323,9 @@ fn emf_estimators_report_their_health() {
     let nlo_wrong = max_health(started(&wrong), &s, &b);
     let ao = max_health(Ao::new(AoConfig::new(&m, &b, g).unwrap()), &s, &b);
     let mras = max_health(
-        MrasEmf::new(MrasEmfConfig::new(&m, &b, g, pmsm_core::MRAS_EMF_PAPER_CONSTANTS).unwrap()),
+        MrasEmf::new(
+            MrasEmfConfig::new(&m, &b, g, pmsm_core::tuning::MRAS_EMF_PAPER_CONSTANTS).unwrap(),
+        ),
         &s,
         &b,
     );

@@ -56,13 +56,13 @@ pub struct RefDirection {
 
 impl RefDirection {
     fn new(ts: f64, omega_b: f64) -> Self {
-        let shift = (pmsm_core::DIRECTION_TIME_CONSTANT_S / ts)
+        let shift = (pmsm_core::tuning::DIRECTION_TIME_CONSTANT_S / ts)
             .log2()
             .round()
             .clamp(1.0, 16.0);
         Self {
             alpha: 0.5f64.powf(shift),
-            threshold_rad: pmsm_core::DIRECTION_THRESHOLD_PU * omega_b * ts,
+            threshold_rad: pmsm_core::tuning::DIRECTION_THRESHOLD_PU * omega_b * ts,
             forward: true,
             prev: None,
             mean: 0.0,
@@ -92,7 +92,7 @@ impl RefDirection {
 fn estimate_from_emf(emf: [f64; 2], psi: f64, min_emf: f64, dir: &mut RefDirection) -> Est {
     let phi = emf[1].atan2(emf[0]);
     let mag = emf[0].hypot(emf[1]);
-    let flip = min_emf / pmsm_core::MIN_EMF_PU * pmsm_core::FLIP_SPEED_PU;
+    let flip = min_emf / pmsm_core::tuning::MIN_EMF_PU * pmsm_core::tuning::FLIP_SPEED_PU;
     let forward = dir.update(phi, mag > min_emf, mag < flip);
     let speed = emf[0].hypot(emf[1]) / psi;
     Est {
@@ -125,7 +125,7 @@ impl RefAo {
             dir: RefDirection::new(ts, omega_b),
             kappa: 1.0 - (-g * ts).exp(),
             psi: m.flux_wb,
-            min_emf: pmsm_core::MIN_EMF_PU * m.flux_wb * omega_b,
+            min_emf: pmsm_core::tuning::MIN_EMF_PU * m.flux_wb * omega_b,
             emf: [0.0; 2],
         }
     }
@@ -189,7 +189,7 @@ impl RefNlo {
             load: 0.0,
             emf: [0.0; 2],
             u: [1.0, 0.0],
-            min_emf: pmsm_core::MIN_EMF_PU * m.flux_wb * omega_b,
+            min_emf: pmsm_core::tuning::MIN_EMF_PU * m.flux_wb * omega_b,
             last_omega: 0.0,
         }
     }
@@ -279,7 +279,7 @@ impl RefMras {
             ao: RefAo::new(m, ts, g, omega_b),
             c,
             ts,
-            min_speed: pmsm_core::MRAS_EMF_MIN_SPEED_PU * omega_b,
+            min_speed: pmsm_core::tuning::MRAS_EMF_MIN_SPEED_PU * omega_b,
             model: [0.0; 2],
             integral: 0.0,
             last_omega: 0.0,

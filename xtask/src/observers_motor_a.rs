@@ -318,7 +318,7 @@ pub fn section() -> String {
                 TS,
                 1000.0,
                 b.omega_e_rad_s,
-                pmsm_core::MRAS_EMF_PAPER_CONSTANTS,
+                pmsm_core::tuning::MRAS_EMF_PAPER_CONSTANTS,
             );
             run_ref(|i, v| r.update(i, v), &s)
         },

@@ -120,7 +120,8 @@ pub fn parse(text: &str, path: &Path) -> Result<Motor> {
 impl RawMotor {
     /// Validates the values and builds the plant model; the error names the key.
     pub fn into_motor(self, default_name: &str) -> Result<Motor, ParamError> {
-        use pmsm_core::{ParamReason, in_range};
+        use pmsm_core::ParamReason;
+        use pmsm_core::validate::in_range;
         let pole_pairs = u32::try_from(self.pole_pairs)
             .ok()
             .filter(|p| (1..=100).contains(p))

@@ -71,7 +71,10 @@
 //! - the fault recorder ([`FaultRecorder`]): the last samples before a fault, per unit, for a
 //!   replay on the host;
 //! - numbers: [`Pu`], [`Unit`], [`Angle`], [`polar`] (CORDIC), and the per-unit bases
-//!   [`PerUnit`].
+//!   [`PerUnit`];
+//! - for tools and tests rather than firmware: the design's constants ([`tuning`]), the
+//!   double-precision references of closed-form laws ([`reference`](mod@reference)) and the parameter checks
+//!   ([`validate`]).
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -108,31 +111,20 @@ mod units;
 
 pub use angle::{Angle, SinCos, sin_cos};
 pub use control::{
-    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, IP_FORM, PI_FORM,
-    Pi, PiConfig, PiOutput, SPEED_LOOP_DECIMATION, SpeedConfig, SpeedController, SpeedDesign,
-    SpeedOutput,
-};
-pub use control::{
-    FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,
-};
-pub use control::{
-    LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT, LIGHT_LOAD_RAISED_PER_LIMIT,
-    LOW_SPEED_FADE_PER_RATED, LightLoad, LightLoadConfig, LowSpeedConfig,
+    CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput, FluxConfig,
+    FluxController, FluxDesign, LightLoad, LightLoadConfig, LowSpeedConfig, Pi, PiConfig, PiOutput,
+    SpeedConfig, SpeedController, SpeedDesign, SpeedOutput,
 };
 pub use cordic::{Polar, polar};
-pub use deadtime::{
-    CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams, MEASURED_SIGN_BANDS,
-};
-pub use drive::{ACTIVE_SHORT, MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, RECTIFY_GRACE_S};
+pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
 pub use drive::{
-    AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput,
-    DriveIsr, DriveOptions, DriveOutput, DriveState, DriveTask, Fault, Handoff, OpenLoopDesign,
-    Protection, SpeedRefLimit, StartupMode, TASK_PERIOD, Telemetry,
+    ACTIVE_SHORT, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput, DriveIsr,
+    DriveOptions, DriveOutput, DriveState, DriveTask, Fault, Handoff, MAX_PWM_DELAY_SAMPLES,
+    OpenLoopDesign, Protection, SpeedRefLimit, StartupMode, TASK_PERIOD, Telemetry,
 };
 pub use drive::{
     DistortionDesign, DistortionFrozen, DistortionLearner, DistortionStatus, Frozen,
-    ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
-    WRITE_THRESHOLD,
+    ModelCoefficients, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
 };
 pub use error::{ConfigError, Fit};
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};
@@ -142,24 +134,52 @@ pub use identify::{
 };
 pub use ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdOutput, IpdResult};
 pub use num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64};
-pub use observer::direction::{
-    FLIP_SPEED_PU, THRESHOLD_PU as DIRECTION_THRESHOLD_PU,
-    TIME_CONSTANT_S as DIRECTION_TIME_CONSTANT_S,
-};
-pub use observer::emf::MIN_EMF_PU;
-pub use observer::mras_emf::{
-    ADAPTATION_BANDWIDTH_TS as MRAS_EMF_ADAPTATION_BANDWIDTH_TS,
-    MIN_DAMPING as MRAS_EMF_MIN_DAMPING, MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU,
-    PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
-};
 pub use observer::{
-    AnyEstimator, Ao, AoConfig, ESTIMATOR_SALIENCY, Estimate, Estimator, EstimatorConfig,
-    EstimatorKind, MAX_GAIN_TS, MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf,
-    MrasEmfConfig, MrasModel, Nlo, NloConfig, ObserverInput, default_observer_gain,
+    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MrasCurrent,
+    MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, MrasModel, Nlo, NloConfig,
+    ObserverInput, default_observer_gain,
 };
-pub use params::{
-    InverterParams, MotorParams, ParamError, ParamReason, in_range, non_negative, positive,
-};
+pub use params::{InverterParams, MotorParams, ParamError, ParamReason};
 pub use recorder::{FaultRecorder, FaultSample};
-pub use svpwm::{Duties, OVERMOD_SIX_STEP_REQUEST, SvpwmConfig, SvpwmOutput, overmodulate_f64};
+pub use svpwm::{Duties, SvpwmConfig, SvpwmOutput};
 pub use units::{PerUnit, to_f64};
+
+/// The constants the defaults are designed with (thresholds, time constants, margins, the
+/// speed loop's forms), each documented where it is defined: for tools, tests and whoever
+/// tunes the design. A firmware needs none of them.
+pub mod tuning {
+    pub use crate::control::{
+        IP_FORM, LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT,
+        LIGHT_LOAD_RAISED_PER_LIMIT, LOW_SPEED_FADE_PER_RATED, PI_FORM, SPEED_CAP_PER_BASE,
+        SPEED_LOOP_DECIMATION,
+    };
+    pub use crate::deadtime::MEASURED_SIGN_BANDS;
+    pub use crate::drive::{
+        AUTO_SALIENCY_MARGIN, OVERSPEED_FACTOR, RECTIFY_GRACE_S, SPEED_FILTER_S, WRITE_THRESHOLD,
+    };
+    pub use crate::observer::direction::{
+        FLIP_SPEED_PU, THRESHOLD_PU as DIRECTION_THRESHOLD_PU,
+        TIME_CONSTANT_S as DIRECTION_TIME_CONSTANT_S,
+    };
+    pub use crate::observer::emf::MIN_EMF_PU;
+    pub use crate::observer::mras_emf::{
+        ADAPTATION_BANDWIDTH_TS as MRAS_EMF_ADAPTATION_BANDWIDTH_TS,
+        MIN_DAMPING as MRAS_EMF_MIN_DAMPING, MIN_SPEED_PU as MRAS_EMF_MIN_SPEED_PU,
+        PAPER_CONSTANTS as MRAS_EMF_PAPER_CONSTANTS,
+    };
+    pub use crate::observer::{ESTIMATOR_SALIENCY, MAX_GAIN_TS};
+    pub use crate::svpwm::OVERMOD_SIX_STEP_REQUEST;
+}
+
+/// Double-precision references of fixed-point laws that have a closed form, which the tests
+/// bound the drive's integer arithmetic against.
+pub mod reference {
+    pub use crate::control::{max_speed_f64, mtpa_id_f64, weakening_current_f64};
+    pub use crate::svpwm::overmodulate_f64;
+}
+
+/// The parameter checks the drive's constructors use, with their typed errors ([`ParamError`]
+/// naming the key and the range), for front ends that check their own inputs alike.
+pub mod validate {
+    pub use crate::params::{in_range, non_negative, positive};
+}

@@ -32,7 +32,8 @@
 //! between the commanded and the applied αβ voltage (Khlaief, Boussak, Gossa (2012) eq. 9), and has length
 //! `(4/3) V_dead` whenever no current is near zero.
 
-use pmsm_core::{InverterParams, ParamError, ParamReason, in_range, non_negative};
+use pmsm_core::validate::{in_range, non_negative};
+use pmsm_core::{InverterParams, ParamError, ParamReason};
 
 use crate::clarke;
 

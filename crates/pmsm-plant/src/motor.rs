@@ -39,7 +39,8 @@
 //!
 //! `J dω_m/dt = T − B ω_m − T_L`, `dθ/dt = p ω_m`, or the rotor held ([`Mechanics`]).
 
-use pmsm_core::{MotorParams, ParamError, in_range};
+use pmsm_core::validate::in_range;
+use pmsm_core::{MotorParams, ParamError};
 
 use crate::saturation::{DAxis, Saturation};
 use crate::{PlantError, inverse_clarke, inverse_park, park};

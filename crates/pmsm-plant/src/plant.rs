@@ -5,7 +5,7 @@
 //! "PWM centre" of the symmetric pattern, where the current ripple crosses its average, so
 //! the ADC sees the fundamental without ripple.
 
-use pmsm_core::non_negative;
+use pmsm_core::validate::non_negative;
 
 use crate::PlantError;
 use crate::inverter::{Inverter, InverterKind, InverterModel};

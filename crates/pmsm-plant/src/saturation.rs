@@ -31,7 +31,8 @@
 //! `i ψ_d(i) − (ψ_s²/L_d0)(G(u) − G(u_0))` with `G = ln cosh` on the tanh branch and `u²/2` on
 //! the linear one), plus `L_σ i_d²/2`; the magnet flux contributes nothing at `i_d = 0`.
 
-use pmsm_core::{MotorParams, ParamError, ParamReason, in_range};
+use pmsm_core::validate::in_range;
+use pmsm_core::{MotorParams, ParamError, ParamReason};
 
 /// Strength `k` of the default saturation: `ψ_s = ψ + k L_d I_ref`.
 ///

@@ -5,7 +5,8 @@
 //! `code = round(i_meas / LSB) + 2^(bits−1)`, `LSB = 2 I_FS / 2^bits`, clamped to
 //! `[0, 2^bits − 1]` (a real ADC saturates at its rails, it never wraps).
 
-use pmsm_core::{InverterParams, ParamError, ParamReason, in_range, positive};
+use pmsm_core::validate::{in_range, positive};
+use pmsm_core::{InverterParams, ParamError, ParamReason};
 
 use crate::noise::Rng;
 

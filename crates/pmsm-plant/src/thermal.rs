@@ -8,7 +8,8 @@
 //! ([`crate::Plant::set_thermal_factors`]): the motor's resistance, magnet flux and torque
 //! constant are scaled from the next period on, its state (currents, angle, speed) kept.
 
-use pmsm_core::{ParamError, ParamReason, in_range};
+use pmsm_core::validate::in_range;
+use pmsm_core::{ParamError, ParamReason};
 
 use crate::{Plant, PlantError};
 

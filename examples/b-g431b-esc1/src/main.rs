@@ -52,8 +52,8 @@ fn halt(why: &str) -> ! {
 // not fit the 64 KiB image). `MotorParams::saliency` written out: a const check cannot call
 // it.
 const _: () = assert!(
-    motor::LQ_H - motor::LD_H < pmsm_core::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H)
-        && motor::LD_H - motor::LQ_H < pmsm_core::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),
+    motor::LQ_H - motor::LD_H < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H)
+        && motor::LD_H - motor::LQ_H < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),
     "motor.rs holds an interior motor: build pmsm-core with feature `mras-current`, not `nlo`"
 );
 

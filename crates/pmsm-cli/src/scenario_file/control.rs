@@ -1,7 +1,8 @@
 //! `[control]`: the estimator, the start-up, dead-time compensation, and the overrides of
 //! the drive's default design (gains, bandwidths, limits, the model's errors).
 
-use pmsm_core::{ParamError, ParamReason, in_range, positive};
+use pmsm_core::validate::{in_range, positive};
+use pmsm_core::{ParamError, ParamReason};
 use serde::Deserialize;
 
 /// Estimators a drive can use.

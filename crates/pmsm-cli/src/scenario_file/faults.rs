@@ -1,6 +1,7 @@
 //! `[faults]`: faults injected into the plant at given times.
 
-use pmsm_core::{ParamError, ParamReason, in_range, non_negative, positive};
+use pmsm_core::validate::{in_range, non_negative, positive};
+use pmsm_core::{ParamError, ParamReason};
 use serde::Deserialize;
 
 /// `[faults]` of a scenario: faults injected into the plant at given times.

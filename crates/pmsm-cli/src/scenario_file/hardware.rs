@@ -3,7 +3,8 @@
 
 use crate::motor_file::{self, Motor, RawMotor};
 use anyhow::{Result, anyhow};
-use pmsm_core::{ParamError, in_range, non_negative, positive};
+use pmsm_core::ParamError;
+use pmsm_core::validate::{in_range, non_negative, positive};
 use serde::Deserialize;
 use std::path::Path;
 

@@ -1,6 +1,7 @@
 //! The time course of a scenario: `[initial]` state, `[speed_ref]` and `[load]` profiles.
 
-use pmsm_core::{ParamError, ParamReason, in_range, non_negative};
+use pmsm_core::validate::{in_range, non_negative};
+use pmsm_core::{ParamError, ParamReason};
 use serde::Deserialize;
 
 #[derive(Deserialize, Default)]

@@ -21,6 +21,7 @@ pub(crate) mod speed;
 pub use current::{CurrentConfig, CurrentController, CurrentDesign, CurrentInput, CurrentOutput};
 pub use flux::{
     FluxConfig, FluxController, FluxDesign, SPEED_CAP_PER_BASE, max_speed_f64, mtpa_id_f64,
+    weakening_current_f64,
 };
 pub use light_load::{
     LIGHT_LOAD_BANDS, LIGHT_LOAD_FILTER_S, LIGHT_LOAD_MAX_PER_LIMIT, LIGHT_LOAD_RAISED_PER_LIMIT,

@@ -186,7 +186,7 @@ pub struct DriveDesign {
     pub flux: FluxDesign,
     /// Overmodulation up to six-step beyond the modulator's circle (docs/overmodulation.md;
     /// default off). On, the current loops' voltage limit becomes
-    /// [`crate::OVERMOD_SIX_STEP_REQUEST`] `V_DC` and field weakening holds the applied
+    /// [`crate::tuning::OVERMOD_SIX_STEP_REQUEST`] `V_DC` and field weakening holds the applied
     /// vector's length within `2 V_DC/3`, the hexagon's vertex.
     pub overmodulation: bool,
     /// Control samples between a step's return and the period its duties act over: 0 when
@@ -377,7 +377,7 @@ impl DriveDesign {
 
 /// [`SpeedDesign::reference_weight`] of the drive's default speed loop with the current-model
 /// MRAS (docs/drive.md, "speed loop: the reference's weight"); the back-EMF estimators keep the
-/// IP form ([`crate::IP_FORM`]), whose reference is held at their least speed and whose rotor
+/// IP form ([`crate::tuning::IP_FORM`]), whose reference is held at their least speed and whose rotor
 /// must decelerate into the open-loop reversal.
 pub const MRAS_REFERENCE_WEIGHT: f64 = 0.5;
 
@@ -519,7 +519,10 @@ mod tests {
             current_full_scale_a: 30.0,
         };
         let (share, zeta) = handover(&slow, &inv, EstimatorKind::MrasEmf);
-        assert!((zeta - crate::MRAS_EMF_MIN_DAMPING).abs() < 1e-9, "{zeta}");
+        assert!(
+            (zeta - crate::tuning::MRAS_EMF_MIN_DAMPING).abs() < 1e-9,
+            "{zeta}"
+        );
         assert!(share > 0.15 && share < 0.17, "{share}");
         for kind in [EstimatorKind::Ao, EstimatorKind::Nlo] {
             let (share, zeta) = handover(&slow, &inv, kind);

@@ -21,7 +21,7 @@
 //! is `ψ² c2 c3` while the pull dominates the damping: 43 rad/s on motor A (ψ = 0.288 Wb), but
 //! 0.1 rad/s on a 48 V motor with ψ = 0.014 Wb, whose adapted speed then does not move in a
 //! whole open-loop start. [`MrasEmfConfig::default_for`] therefore designs `c2` for a slow root
-//! of [`crate::MRAS_EMF_ADAPTATION_BANDWIDTH_TS`]`/T_s`, keeps the paper's `c1/c2`, raises
+//! of [`crate::tuning::MRAS_EMF_ADAPTATION_BANDWIDTH_TS`]`/T_s`, keeps the paper's `c1/c2`, raises
 //! `c3` where the sample rate is too slow for it (docs/solsona2000.md §5), integrates
 //! `ε/ω̂_AO` instead of `ε` ([`MrasEmfConfig::normalised_integral`]: the same at constant
 //! speed, but eq. 29's division of the integral by a changing `ω̂_AO` pushes the estimate
@@ -123,7 +123,7 @@ impl MrasEmfConfig {
     /// below the stable least `ω_b T_s/2` for a fast motor at a slow PWM, a 320 V, 5459 r/min,
     /// 3-pole-pair motor at 13 kHz needs 0.103, and doubling the bound keeps the pull's series
     /// accurate); `c2` such that the adaptation's slow root `ψ² c2 c3` is
-    /// [`crate::MRAS_EMF_ADAPTATION_BANDWIDTH_TS`]`/T_s`; `c1` in the paper's ratio to `c2`; the AO
+    /// [`crate::tuning::MRAS_EMF_ADAPTATION_BANDWIDTH_TS`]`/T_s`; `c1` in the paper's ratio to `c2`; the AO
     /// lag-compensated.
     pub fn default_for(
         motor: &MotorParams,

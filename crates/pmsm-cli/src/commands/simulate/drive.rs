@@ -5,11 +5,12 @@ use crate::scenario_file::{
     CompensationMode, DeadTimeCurrent, ObserverKind, Scenario, SpeedLoopForm, Startup,
 };
 use anyhow::{Result, anyhow, bail};
+use pmsm_core::tuning::{IP_FORM, PI_FORM};
 use pmsm_core::{Angle, InverterParams, MotorParams, PerUnit};
 use pmsm_core::{CurrentSource, DeadTimeMode};
 use pmsm_core::{DistortionDesign, DistortionLearner};
 use pmsm_core::{Drive, DriveConfig, DriveDesign, StartupMode, Tracker, TrackerDesign};
-use pmsm_core::{EstimatorKind, IP_FORM, MrasCurrentGains, PI_FORM};
+use pmsm_core::{EstimatorKind, MrasCurrentGains};
 use std::f64::consts::TAU;
 
 /// The drive of a scenario and what the loop needs to talk to it in SI units.
