@@ -53,7 +53,8 @@ fn halt(why: &str) -> ! {
 // it.
 const _: () = assert!(
     motor::LQ_H - motor::LD_H < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H)
-        && motor::LD_H - motor::LQ_H < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),
+        && motor::LD_H - motor::LQ_H
+            < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),
     "motor.rs holds an interior motor: build pmsm-core with feature `mras-current`, not `nlo`"
 );
 
