@@ -141,6 +141,20 @@ pub(crate) fn list(xs: &[(f64, f64)], f: fn(&(f64, f64)) -> f64) -> String {
         .join(", ")
 }
 
+/// A scenario file's `[initial]`, `[speed_ref]` and `[load]` tables: the rotor at
+/// `theta0_deg`, the manoeuvre's breakpoints.
+pub(crate) fn manoeuvre_tables(man: &Manoeuvre, theta0_deg: f64) -> String {
+    format!(
+        "[initial]\ntheta_e_deg = {theta0_deg:.3}\n\
+         [speed_ref]\nt_s = [{}]\nrpm = [{}]\n\
+         [load]\nt_s = [{}]\nnm = [{}]\n",
+        list(&man.speed, |x| x.0),
+        list(&man.speed, |x| x.1),
+        list(&man.load, |x| x.0),
+        list(&man.load, |x| x.1),
+    )
+}
+
 /// The scenario file's text for `m` with `estimator`: every setting at its default but the
 /// dead-time compensation, which the file has off unless asked and the drive's own design
 /// (`DriveDesign::default_for`) has on, and the `key = value` lines of `control` added to
@@ -151,10 +165,7 @@ fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre, control: &[String]
          motor = {{ name = \"family {}\", pole_pairs = {}, rs_ohm = {}, ld_h = {}, lq_h = {}, flux_wb = {}, \
          j_kg_m2 = {}, b_nm_s = {}, rated_current_a = {}, rated_speed_rpm = {} }}\n\
          [inverter]\nvdc_v = {}\npwm_hz = {}\ndead_time_s = {}\nmodel = \"switching\"\n\
-         [control]\nobserver = \"{estimator}\"\nstartup = \"auto\"\ndeadtime_compensation = true\n{}\
-         [initial]\ntheta_e_deg = {:.3}\n\
-         [speed_ref]\nt_s = [{}]\nrpm = [{}]\n\
-         [load]\nt_s = [{}]\nnm = [{}]\n",
+         [control]\nobserver = \"{estimator}\"\nstartup = \"auto\"\ndeadtime_compensation = true\n{}{}",
         man.duration_s,
         m.index,
         m.pole_pairs,
@@ -170,11 +181,7 @@ fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre, control: &[String]
         m.pwm_hz,
         m.dead_time_s,
         control.iter().map(|c| format!("{c}\n")).collect::<String>(),
-        m.theta0_deg,
-        list(&man.speed, |x| x.0),
-        list(&man.speed, |x| x.1),
-        list(&man.load, |x| x.0),
-        list(&man.load, |x| x.1),
+        manoeuvre_tables(man, m.theta0_deg),
     )
 }
 

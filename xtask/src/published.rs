@@ -27,7 +27,9 @@ pub use classes::{CLASS_RULES, class_names, widened};
 pub use cli::{WIDENED_MOTORS, WIDENED_SEEDS, published_main, widened_main};
 pub use widened::{WIDENED_TITLE, widened_section};
 
-use crate::family::{HOLD_ANGLE_RAD, HOLD_SPEED, Manoeuvre, Motor, Outcome, classify, list};
+use crate::family::{
+    HOLD_ANGLE_RAD, HOLD_SPEED, Manoeuvre, Motor, Outcome, classify, manoeuvre_tables,
+};
 use crate::progress;
 use anyhow::{Context, Result, bail};
 use pmsm_cli::commands::simulate::{Row, run_scenario};
@@ -235,9 +237,7 @@ fn scenario_text(p: &Published, m: &Motor, man: &Manoeuvre, control: &[String]) 
          motor = {{ name = {:?}, pole_pairs = {}, rs_ohm = {:e}, ld_h = {:e}, lq_h = {:e}, flux_wb = {:e}, \
          j_kg_m2 = {:e}, b_nm_s = {:e}, rated_current_a = {}, rated_speed_rpm = {} }}\n\
          [inverter]\nvdc_v = {}\npwm_hz = {}\ndead_time_s = {:e}\nmodel = \"switching\"\n\
-         {control}[initial]\ntheta_e_deg = {:.3}\n\
-         [speed_ref]\nt_s = [{}]\nrpm = [{}]\n\
-         [load]\nt_s = [{}]\nnm = [{}]\n",
+         {control}{}",
         man.duration_s,
         p.name,
         p.pole_pairs,
@@ -252,11 +252,7 @@ fn scenario_text(p: &Published, m: &Motor, man: &Manoeuvre, control: &[String]) 
         p.vdc_v,
         p.pwm_hz,
         p.dead_time_s,
-        m.theta0_deg,
-        list(&man.speed, |x| x.0),
-        list(&man.speed, |x| x.1),
-        list(&man.load, |x| x.0),
-        list(&man.load, |x| x.1),
+        manoeuvre_tables(man, m.theta0_deg),
     )
 }
 
