@@ -555,7 +555,7 @@ fn the_measured_currents_signs_hold_a_salient_540_v_motor() {
     // weight on the MRAS's d-axis error.
     let former = with_control(
         &with("reference"),
-        "current_bandwidth_hz = 111.4\nmras_d_weight = 1.0\n",
+        "current_bandwidth_hz = 111.4\nmras_d_weight = 1.0\ntracking = false\n",
     );
     let reference = run_scenario(&scenario_text("salient-540v-reference", &former)).unwrap();
     let no_load = window(&reference.rows, 1.2, 1.46);

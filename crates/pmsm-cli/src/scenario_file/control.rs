@@ -184,7 +184,7 @@ pub struct Control {
     /// which current's sign").
     pub deadtime_current: Option<DeadTimeCurrent>,
     /// Track the motor's R and ψ while running (`pmsm_core::Tracker`, docs/tracking.md;
-    /// default: the drive's, `pmsm_core::DriveDesign::tracking`, off).
+    /// default: the drive's, `pmsm_core::DriveDesign::tracking`, on with the current-model MRAS).
     pub tracking: Option<bool>,
     /// Learn the inverter's distortion voltage while running and rescale the dead-time
     /// compensation to it (`pmsm_core::DistortionLearner`, docs/distortion.md; default: the

@@ -225,8 +225,8 @@ pub struct DriveDesign {
     /// dead-time compensation does, and the other estimators ignore it.
     pub zero_crossing_hold: bool,
     /// Track the motor's `R` and `ψ` while running and rewrite the drive's model with them
-    /// (the task's [`super::Tracker`], docs/tracking.md). Default off (docs/tracking.md, "Off by
-    /// default").
+    /// (the task's [`super::Tracker`], docs/tracking.md). Default on with the current-model MRAS
+    /// (whose model it rewrites) in a build with the feature `tracking`.
     pub tracking: bool,
     /// Learn the inverter's distortion voltage while running and rescale the dead-time
     /// compensation (the task's [`super::DistortionLearner`], docs/distortion.md).
@@ -348,7 +348,9 @@ impl DriveDesign {
             // the EMF dwarfs it. (`DriveConfig::new` runs it only with a compensated command.)
             deadtime_calibration: !estimator.needs_open_loop_start() && inverter.dead_time_s > 0.0,
             zero_crossing_hold: true,
-            tracking: false,
+            // The tracker rewrites the current-model MRAS's model; the back-EMF estimators
+            // keep theirs (it would only move the current loops' feed-forward under them).
+            tracking: estimator == EstimatorKind::MrasCurrent && cfg!(feature = "tracking"),
             deadtime_learning: false,
             // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
             // oscillate at no load; a d current switched in at their handover disturbed an NLO

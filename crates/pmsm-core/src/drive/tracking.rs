@@ -190,6 +190,8 @@ pub struct Tracker {
     lo: [f32; 2],
     hi: [f32; 2],
     max_step: f32,
+    /// [`TrackerDesign::rs_min_drop_ratio`].
+    drop_ratio: f32,
     /// `(R/R₀, ψ/ψ₀)`, its covariance `(p_RR, p_Rψ, p_ψψ)`, their low-pass (what the drive
     /// is given) and its values last written.
     x: [f32; 2],
@@ -287,6 +289,7 @@ impl Tracker {
         )?;
         in_range("tracking.transient_weight", d.transient_weight, 0.0, 1e4)?;
         in_range("tracking.motion_filter_s", d.motion_filter_s, 0.0, 1.0)?;
+        in_range("tracking.rs_min_drop_ratio", d.rs_min_drop_ratio, 0.0, 10.0)?;
         Ok(Self::build(motor, base, design))
     }
 
@@ -336,6 +339,7 @@ impl Tracker {
             lo: [d.rs_range.0 as f32, d.flux_range.0 as f32],
             hi: [d.rs_range.1 as f32, d.flux_range.1 as f32],
             max_step: d.max_step as f32,
+            drop_ratio: d.rs_min_drop_ratio as f32,
             x: [1.0, 1.0],
             p: [vr as f32, 0.0, vp as f32],
             applied: [1.0, 1.0],
@@ -462,7 +466,13 @@ impl Tracker {
             self.psi0 * libm::fabsf(w_hat),
         ];
         let motion_v = self.motion_gain * self.motion;
-        self.correct(y, phi, motion_v * motion_v);
+        // The regressor's speed is the estimate: its swing about the filtered speed is an
+        // error of the EMF term, counted as noise.
+        let swing_v = self.psi0 * (w_hat - self.w_f);
+        // `R` learns only where its drop is a fair share of the EMF: elsewhere a bias of a
+        // percent of the EMF would read as a resistance error many times larger.
+        let learn_r = libm::fabsf(phi[0]) >= self.drop_ratio * phi[1];
+        self.correct(y, phi, motion_v * motion_v + swing_v * swing_v, learn_r);
         self.status.learning = true;
         self.status.learnt = self.status.learnt.saturating_add(1);
     }
@@ -477,11 +487,17 @@ impl Tracker {
     }
 
     /// The Kalman correction on `y = φ · x` (per unit of `V_b`), the measurement's variance
-    /// raised by `extra`.
-    fn correct(&mut self, y: f32, phi: [f32; 2], extra: f32) {
+    /// raised by `extra`; without `learn_r`, on `ψ` alone with `R̂` taken as known (its
+    /// variance kept, its correlation with `ψ` shrunk as `ψ`'s variance is).
+    fn correct(&mut self, y: f32, phi: [f32; 2], extra: f32, learn_r: bool) {
         let p = self.p;
-        let pf = [p[0] * phi[0] + p[1] * phi[1], p[1] * phi[0] + p[2] * phi[1]];
-        let s = phi[0] * pf[0] + phi[1] * pf[1] + self.noise2 + extra;
+        let (pf, s) = if learn_r {
+            let pf = [p[0] * phi[0] + p[1] * phi[1], p[1] * phi[0] + p[2] * phi[1]];
+            (pf, phi[0] * pf[0] + phi[1] * pf[1] + self.noise2 + extra)
+        } else {
+            let pf = [0.0, p[2] * phi[1]];
+            (pf, phi[1] * pf[1] + self.noise2 + extra)
+        };
         let k = [pf[0] / s, pf[1] / s];
         let nu = y - (phi[0] * self.x[0] + phi[1] * self.x[1]);
         let mut dx = [k[0] * nu, k[1] * nu];
@@ -492,11 +508,15 @@ impl Tracker {
             let scale = self.max_step / big;
             dx = [dx[0] * scale, dx[1] * scale];
         } else {
-            self.p = [
-                p[0] - k[0] * pf[0],
-                p[1] - k[0] * pf[1],
-                p[2] - k[1] * pf[1],
-            ];
+            self.p = if learn_r {
+                [
+                    p[0] - k[0] * pf[0],
+                    p[1] - k[0] * pf[1],
+                    p[2] - k[1] * pf[1],
+                ]
+            } else {
+                [p[0], p[1] * (1.0 - k[1] * phi[1]), p[2] - k[1] * pf[1]]
+            };
         }
         self.x = [
             (self.x[0] + dx[0]).max(self.lo[0]).min(self.hi[0]),

@@ -59,6 +59,10 @@ pub struct TrackerDesign {
     /// than the update interval, so that the sampling noise of a steady current does not
     /// count; shorter than a limit cycle's period).
     pub motion_filter_s: f64,
+    /// Least ratio of the resistive drop `R₀ |n·î|` to the EMF `|ω̂| ψ₀` at which `R` is
+    /// learnt (elsewhere only `ψ`): a bias of 1 % of the EMF in the measurement reads as an
+    /// error of `R` of 1 %/ratio.
+    pub rs_min_drop_ratio: f64,
 }
 
 impl TrackerDesign {
@@ -92,6 +96,7 @@ impl TrackerDesign {
             max_inverter_ratio: 0.1,
             transient_weight: 10.0,
             motion_filter_s: 0.004,
+            rs_min_drop_ratio: 0.2,
         }
     }
 
