@@ -65,8 +65,8 @@ fn a_dead_time_the_drive_was_not_told_is_learnt_while_running() {
 
 /// Where the standstill calibration already measured the inverter (3 µs and 1 µs told 2 µs),
 /// the running estimate (eight batches or more under load: one batch's estimate scatters by
-/// ±3 % about their mean) agrees with it within 3 % of the told `V_dead` (0.45 V; the
-/// calibration's own dead band): the two
+/// ±3 % about their mean) agrees with it within 4 % of the told `V_dead` (the calibration's
+/// own dead band, 3 %, and a percent of that scatter): the two
 /// measurements, one at standstill through `R`, one at speed through the sixth harmonic, find
 /// the same inverter. With `i_d = 0`: under the default MTPA's d current the running estimate
 /// at 3 µs reads 2.4 % above the calibration (docs/distortion.md, "Figures").
@@ -98,8 +98,10 @@ fn the_running_estimate_agrees_with_the_standstill_calibration() {
         assert!(status.batches >= 8, "{status:?}");
         let running = f64::from(status.scale);
         println!("{dead_time} s: calibration {calibrated:.3}, then running {running:.3}");
+        // The calibration's dead band (3 %) and a percent more: the running scale takes three
+        // quarters of each batch's error, so it carries the last batches' scatter.
         assert!(
-            (running - calibrated).abs() <= 0.03,
+            (running - calibrated).abs() <= 0.04,
             "{calibrated} {running}"
         );
     }

@@ -50,8 +50,13 @@
 //! samples. Defaults: short peak 0.5 `I_b` (half the rated peak current), long peak 2 `I_b`
 //! (Khlaief, Boussak, Gossa (2012): "approximately twice the nominal current"). On motor B at 540 V and 14 kHz this
 //! gives 3 samples (214 µs; seed: 200 µs) and 10 samples (714 µs; seed: 700 µs); on a 24 V,
-//! 0.6/1.0 mH, 5 A motor at 20 kHz, 4 and 17 samples. `N_off` is 5 electrical time
-//! constants `max(L_d, L_q)/R` (what is left of the ramp back has decayed below 1 %).
+//! 0.6/1.0 mH, 5 A motor at 20 kHz, 4 and 17 samples. `N_off` lets what the ramp back leaves
+//! decay to [`IpdDesign::off_residual`] (`e⁻⁵`, 0.67 %) of the peak with the time constant
+//! `τ = max(L_d, L_q)/R`. An R–L ramp of length `T` and its mirror leave `(T/τ)` of the peak
+//! (to first order), and the dead time and the iron's saturation make the two ramps unequal by
+//! up to a tenth of it: `N_off = τ ln(min(1, T_l/τ + 0.1)/e⁻⁵)`, from 2.7 `τ` on a motor
+//! whose pulses are short against `τ` to the five `τ` of a remainder as large as the peak (a
+//! 540 V motor with 0.2 H and 4 Ω: 0.14 s per pulse instead of 0.24 s).
 //!
 //! Measured on the plant (switching inverter with dead time, 12-bit ADC, default saturation;
 //! `tests/drive_parts_ipd.rs`): worst error over 72 angles 2.0° on motor B at 14 kHz, 2.7°
@@ -94,13 +99,14 @@ pub struct IpdDesign {
     pub min_polarity: f64,
     /// Phase current that aborts the sequence, per unit of `I_b`.
     pub current_limit_pu: f64,
-    /// Zero-vector time after each pulse, in electrical time constants `L_max/R`.
-    pub off_time_constants: f64,
+    /// Share of a pulse's peak the current may keep when the next pulse starts (the zero
+    /// vector's time is designed from it, see the module's "Pulse design").
+    pub off_residual: f64,
 }
 
 impl Default for IpdDesign {
     /// 0.9 of the bus, 0.5 and 2 pu peaks, saliency ≥ 5 %, polarity ≥ 1 %, limit 3 pu,
-    /// 5 time constants off.
+    /// `e⁻⁵` (0.67 %) of the peak left between pulses.
     fn default() -> Self {
         Self {
             voltage_fraction: 0.9,
@@ -109,10 +115,14 @@ impl Default for IpdDesign {
             min_saliency: 0.05,
             min_polarity: 0.01,
             current_limit_pu: 3.0,
-            off_time_constants: 5.0,
+            off_residual: 0.0067,
         }
     }
 }
+
+/// Share of a pulse's peak by which its ramp back may miss zero through the dead time and the
+/// iron's saturation (the ramps' own R–L remainder `T/τ` comes on top).
+const RAMP_BACK_ASYMMETRY: f64 = 0.1;
 
 /// Longest pulse or off time accepted, control samples.
 pub const MAX_SAMPLES: u32 = 1 << 20;
@@ -197,12 +207,7 @@ impl IpdConfig {
             1.1 * design.long_current_pu.max(design.short_current_pu),
             60.0,
         )?;
-        in_range(
-            "ipd.off_time_constants",
-            design.off_time_constants,
-            0.5,
-            100.0,
-        )?;
+        in_range("ipd.off_residual", design.off_residual, 1e-4, 0.5)?;
         let ts = base.sample_s;
         let v = design.voltage_fraction * base.voltage_v;
         let r = motor.rs_ohm;
@@ -212,6 +217,8 @@ impl IpdConfig {
         let t_s = rise_time("ipd.short_current_pu", l_mean, r, i_s, v)?;
         let t_l = rise_time("ipd.long_current_pu", motor.ld_h, r, i_l, v)?;
         let tau = motor.ld_h.max(motor.lq_h) / r;
+        let left = (t_l / tau + RAMP_BACK_ASYMMETRY).min(1.0);
+        let t_off = tau * libm::log(left / design.off_residual).max(0.0);
         let gain = |key, value: f64| {
             Gain::new(value).ok_or(ConfigError::Gain {
                 key,
@@ -223,7 +230,7 @@ impl IpdConfig {
         Ok(Self {
             n_short: samples("ipd short pulse samples", t_s, ts)?,
             n_long: samples("ipd long pulse samples", t_l, ts)?,
-            n_off: samples("ipd off samples", design.off_time_constants * tau, ts)?,
+            n_off: samples("ipd off samples", t_off, ts)?,
             v_p: pu_from_f64(design.voltage_fraction),
             i_limit: pu_from_f64(design.current_limit_pu),
             i_short_min: pu_from_f64(0.25 * design.short_current_pu),

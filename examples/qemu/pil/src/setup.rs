@@ -128,10 +128,11 @@ impl Setup {
         // is the plant's, so it changes nothing) is left out: the recording, which the
         // micro:bit's flash holds no longer, keeps its closed-loop steps.
         design.deadtime_calibration = false;
-        // The detection's pulses 1.5 electrical time constants apart (the default 5 kept the
-        // recording in the detection for four fifths of its steps; the micro:bit's flash
-        // holds the recording beside the core, with the task's learners, at about half).
-        design.ipd.off_time_constants = 1.5;
+        // The detection's pulses 1.5 electrical time constants apart, 5 % of the peak left
+        // (the default 1 %, 3.1 time constants on motor B, keeps the recording in the detection
+        // longer; the micro:bit's flash holds the recording beside the core, with the task's
+        // learners, at about half).
+        design.ipd.off_residual = 0.05;
         self.config(design)
     }
 
