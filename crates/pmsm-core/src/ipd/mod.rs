@@ -51,10 +51,10 @@
 //! (Khlaief, Boussak, Gossa (2012): "approximately twice the nominal current"). On motor B at 540 V and 14 kHz this
 //! gives 3 samples (214 µs; seed: 200 µs) and 10 samples (714 µs; seed: 700 µs); on a 24 V,
 //! 0.6/1.0 mH, 5 A motor at 20 kHz, 4 and 17 samples. `N_off` lets what the ramp back leaves
-//! decay to [`IpdDesign::off_residual`] (`e⁻⁵`, 0.67 %) of the peak with the time constant
+//! decay to [`IpdDesign::off_residual`] (0.67 %, about `e⁻⁵`) of the peak with the time constant
 //! `τ = max(L_d, L_q)/R`. An R–L ramp of length `T` and its mirror leave `(T/τ)` of the peak
 //! (to first order), and the dead time and the iron's saturation make the two ramps unequal by
-//! up to a tenth of it: `N_off = τ ln(min(1, T_l/τ + 0.1)/e⁻⁵)`, from 2.7 `τ` on a motor
+//! up to a tenth of it: `N_off = τ ln(min(1, T_l/τ + 0.1)/0.0067)`, from 2.7 `τ` on a motor
 //! whose pulses are short against `τ` to the five `τ` of a remainder as large as the peak (a
 //! 540 V motor with 0.2 H and 4 Ω: 0.14 s per pulse instead of 0.24 s).
 //!
@@ -106,7 +106,7 @@ pub struct IpdDesign {
 
 impl Default for IpdDesign {
     /// 0.9 of the bus, 0.5 and 2 pu peaks, saliency ≥ 5 %, polarity ≥ 1 %, limit 3 pu,
-    /// `e⁻⁵` (0.67 %) of the peak left between pulses.
+    /// 0.67 % (about `e⁻⁵`) of the peak left between pulses.
     fn default() -> Self {
         Self {
             voltage_fraction: 0.9,
