@@ -16,6 +16,8 @@
 //!   [--seeds A-B] [--check] [--write]`: motors drawn from classes written from them.
 //! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
 //!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
+//! - `cargo xtask web [--port N] [--no-build] [--no-serve]`: builds the workbench (the drive in
+//!   WebAssembly and its page) and serves it on 127.0.0.1 (`web.rs`, docs/workbench.md).
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
 //!   `docs/PERFORMANCE.md`).
 
@@ -36,6 +38,7 @@ mod progress;
 mod published;
 mod robustness;
 mod sweep;
+mod web;
 
 use anyhow::{Result, bail};
 use rayon::prelude::*;
@@ -113,13 +116,15 @@ fn main() -> Result<()> {
             );
             Ok(())
         }
+        "web" => web::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "plant-speed" => {
             print!("{}", plant_speed::section()?);
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | {} | identify-family [N] [--seed S]",
-            family::USAGE
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | {} | identify-family [N] [--seed S] | {}",
+            family::USAGE,
+            web::USAGE
         ),
     }
 }

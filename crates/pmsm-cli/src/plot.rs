@@ -1,6 +1,7 @@
 //! Stacked time-series panels written as SVG: what a person would rather look at than read.
 
 use anyhow::{Result, anyhow};
+#[cfg(feature = "svg")]
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -20,6 +21,7 @@ pub struct Panel<'a> {
     pub series: Vec<Series<'a>>,
 }
 
+#[cfg(feature = "svg")]
 const COLOURS: [RGBColor; 4] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
@@ -28,9 +30,11 @@ const COLOURS: [RGBColor; 4] = [
 ];
 
 /// Largest number of points drawn per line; longer series are decimated (min/max kept).
+#[cfg(feature = "svg")]
 const MAX_POINTS: usize = 4000;
 
 /// Writes `panels` stacked over the time axis `t_s` to an SVG file.
+#[cfg(feature = "svg")]
 pub fn write_svg(path: &Path, caption: &str, t_s: &[f64], panels: &[Panel<'_>]) -> Result<()> {
     let err = |e: &dyn std::fmt::Display| anyhow!("{}: cannot draw the plot: {e}", path.display());
     match path.extension().and_then(|e| e.to_str()) {
@@ -88,7 +92,18 @@ pub fn write_svg(path: &Path, caption: &str, t_s: &[f64], panels: &[Panel<'_>]) 
     Ok(())
 }
 
+/// Without the feature `svg` (a build for the browser, which draws its own plots): an error
+/// that says so.
+#[cfg(not(feature = "svg"))]
+pub fn write_svg(path: &Path, _caption: &str, _t_s: &[f64], _panels: &[Panel<'_>]) -> Result<()> {
+    Err(anyhow!(
+        "{}: this build draws no plots (pmsm-cli's feature `svg` is off)",
+        path.display()
+    ))
+}
+
 /// Min and max of finite values, widened when flat.
+#[cfg(feature = "svg")]
 fn span(v: &[f64]) -> (f64, f64) {
     let (lo, hi) = v
         .iter()
@@ -107,6 +122,7 @@ fn span(v: &[f64]) -> (f64, f64) {
 
 /// At most `MAX_POINTS` points that keep each bucket's minimum and maximum, in time order;
 /// non-finite values (a series' gaps) are left out.
+#[cfg(feature = "svg")]
 fn decimate(t: &[f64], v: &[f64]) -> Vec<(f64, f64)> {
     let (t, v): (Vec<f64>, Vec<f64>) = t
         .iter()

@@ -12,7 +12,7 @@
 //! flux_factor = [1.0, 0.95]
 //! ```
 
-use crate::motor_file::{self, Motor};
+use crate::motor_file::Motor;
 use anyhow::{Result, anyhow};
 use pmsm_plant::Thermal;
 use serde::Deserialize;
@@ -35,11 +35,15 @@ pub fn thermal(raw: Option<&RawThermal>, shown: &str) -> Result<Option<Thermal>>
     .transpose()
 }
 
-/// Reads `[control] model_motor`, relative to the scenario file at `scenario`.
-pub fn model_motor(path: Option<&str>, scenario: &Path) -> Result<Option<Motor>> {
+/// Reads `[control] model_motor`, relative to the scenario file at `scenario`, with `read`.
+pub fn model_motor(
+    path: Option<&str>,
+    scenario: &Path,
+    read: &dyn Fn(&Path) -> Result<Motor>,
+) -> Result<Option<Motor>> {
     path.map(|p| {
         let full = scenario.parent().unwrap_or(Path::new(".")).join(p);
-        motor_file::read(&full).map_err(|e| anyhow!("control.model_motor: {e:#}"))
+        read(&full).map_err(|e| anyhow!("control.model_motor: {e:#}"))
     })
     .transpose()
 }

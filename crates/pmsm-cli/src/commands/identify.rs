@@ -209,39 +209,73 @@ pub fn motor_toml(name: &str, m: &MotorParams) -> String {
     s
 }
 
-/// Runs `pmsm identify`.
-pub fn run(args: &Args) -> Result<()> {
-    let truth = motor_file::read(&args.motor)?;
+/// What an identification is run with, as `pmsm identify`'s options give it.
+#[derive(Clone, Copy, Debug)]
+pub struct Request {
+    /// DC bus voltage, V.
+    pub vdc_v: f64,
+    /// PWM (and control) frequency, Hz.
+    pub pwm_hz: f64,
+    /// Inverter dead time, s.
+    pub dead_time_s: f64,
+    /// Current limit, A peak (`None`: √2 × the truth's rated current).
+    pub current_limit_a: Option<f64>,
+    /// Initial electrical rotor angle of the plant, degrees.
+    pub theta_deg: f64,
+    /// Mechanical acceleration of the spin's ramps, rad/s².
+    pub accel_rad_s2: f64,
+    /// White noise on each phase-current reading, A RMS.
+    pub adc_noise_a: f64,
+    /// The averaged inverter model instead of the switching one.
+    pub averaged: bool,
+}
+
+/// An identification done: the identified motor (with the truth's ratings) and the report.
+#[derive(Clone, Debug)]
+pub struct Commissioned {
+    /// The identified motor.
+    pub motor: MotorParams,
+    /// Its motor file ([`motor_toml`]).
+    pub toml: String,
+    /// Identified against true, one line each (what `pmsm identify` prints).
+    pub report: String,
+    /// The run.
+    pub run: Run,
+}
+
+/// Identifies `truth` (named `shown` in messages) as `request` says.
+pub fn commission(
+    truth: &motor_file::Motor,
+    request: &Request,
+    shown: &str,
+) -> Result<Commissioned> {
     let t = truth.model.params;
-    let limit = match (args.current_limit_a, t.rated_current_a) {
+    let limit = match (request.current_limit_a, t.rated_current_a) {
         (Some(a), _) => a,
         (None, Some(rms)) => std::f64::consts::SQRT_2 * rms,
-        (None, None) => bail!(
-            "{}: no rated_current_a; give --current-limit-a",
-            args.motor.display()
-        ),
+        (None, None) => bail!("{shown}: no rated_current_a; give --current-limit-a"),
     };
     if !(limit.is_finite() && limit > 0.0) {
         bail!("--current-limit-a: must be a positive number, not {limit}");
     }
     let inverter = InverterParams {
-        vdc_v: args.vdc,
-        pwm_hz: args.pwm_hz,
-        dead_time_s: args.dead_time_s,
+        vdc_v: request.vdc_v,
+        pwm_hz: request.pwm_hz,
+        dead_time_s: request.dead_time_s,
         current_full_scale_a: 2.5 * limit,
     };
     inverter.validate().map_err(|e| anyhow!("{e}"))?;
-    let kind = if args.averaged {
+    let kind = if request.averaged {
         InverterKind::Averaged
     } else {
         InverterKind::Switching
     };
     let design = IdentifyDesign {
-        accel_m_rad_s2: args.accel_rad_s2,
+        accel_m_rad_s2: request.accel_rad_s2,
         ..IdentifyDesign::default()
     };
     let mut adc = AdcParams::from_inverter(&inverter);
-    adc.noise_rms_a = args.adc_noise_a;
+    adc.noise_rms_a = request.adc_noise_a;
     adc.validate().map_err(|e| anyhow!("--adc-noise-a: {e}"))?;
     let run = identify_with(
         &truth.model,
@@ -249,7 +283,7 @@ pub fn run(args: &Args) -> Result<()> {
         kind,
         adc,
         limit,
-        args.theta_deg,
+        request.theta_deg,
         design,
     )
     .map_err(|e| {
@@ -263,22 +297,16 @@ pub fn run(args: &Args) -> Result<()> {
     m.rated_current_a = t.rated_current_a;
     m.rated_speed_rpm = t.rated_speed_rpm;
     let name = format!("{} (identified)", truth.name);
-    std::fs::write(&args.output, motor_toml(&name, &m))
-        .map_err(|e| anyhow!("{}: cannot write: {e}", args.output.display()))?;
-    crate::outln!(
+    let mut report = String::new();
+    let _ = writeln!(
+        report,
         "pmsm identify: {} at {} V, {} Hz, dead time {} s, limit {limit:.3} A: {:.2} s",
-        truth.name,
-        args.vdc,
-        args.pwm_hz,
-        args.dead_time_s,
-        run.duration_s
+        truth.name, request.vdc_v, request.pwm_hz, request.dead_time_s, run.duration_s
     );
-    crate::outln!(
+    let _ = writeln!(
+        report,
         "  {:<10} {:>13} {:>13} {:>9}",
-        "",
-        "identified",
-        "plant",
-        "error"
+        "", "identified", "plant", "error"
     );
     for (key, got, want) in [
         ("rs_ohm", m.rs_ohm, t.rs_ohm),
@@ -293,14 +321,41 @@ pub fn run(args: &Args) -> Result<()> {
         } else {
             "-".to_owned()
         };
-        crate::outln!("  {key:<10} {got:>13.5e} {want:>13.5e} {err:>9}");
+        let _ = writeln!(report, "  {key:<10} {got:>13.5e} {want:>13.5e} {err:>9}");
     }
-    crate::outln!(
+    let _ = writeln!(
+        report,
         "  distortion voltage {:.3} V, spin at {:.0} and {:.0} rad/s electrical",
         run.identified.distortion_v,
         run.identified.spin_speeds_rad_s[0],
         run.identified.spin_speeds_rad_s[1]
     );
+    Ok(Commissioned {
+        motor: m,
+        toml: motor_toml(&name, &m),
+        report,
+        run,
+    })
+}
+
+/// Runs `pmsm identify`.
+pub fn run(args: &Args) -> Result<()> {
+    let truth = motor_file::read(&args.motor)?;
+    let request = Request {
+        vdc_v: args.vdc,
+        pwm_hz: args.pwm_hz,
+        dead_time_s: args.dead_time_s,
+        current_limit_a: args.current_limit_a,
+        theta_deg: args.theta_deg,
+        accel_rad_s2: args.accel_rad_s2,
+        adc_noise_a: args.adc_noise_a,
+        averaged: args.averaged,
+    };
+    let done = commission(&truth, &request, &args.motor.display().to_string())?;
+    std::fs::write(&args.output, &done.toml)
+        .map_err(|e| anyhow!("{}: cannot write: {e}", args.output.display()))?;
+    crate::out::emit(format_args!("{}", done.report));
+    let run = done.run;
     crate::outln!("  output     {}", args.output.display());
     if let Some(path) = &args.plot {
         let tr = &run.trace;

@@ -1,7 +1,7 @@
 //! The hardware of a scenario: its `motor` (a file or an inline table), `[inverter]` and
 //! `[sensing]` (the current ADC).
 
-use crate::motor_file::{self, Motor, RawMotor};
+use crate::motor_file::{Motor, RawMotor};
 use anyhow::{Result, anyhow};
 use pmsm_core::ParamError;
 use pmsm_core::validate::{in_range, non_negative, positive};
@@ -17,12 +17,17 @@ pub(super) enum MotorRef {
 }
 
 impl MotorRef {
-    /// Reads the motor file (relative to the scenario at `path`) or checks the inline table.
-    pub(super) fn resolve(self, path: &Path) -> Result<Motor> {
+    /// Reads the motor file (relative to the scenario at `path`, with `read`) or checks the
+    /// inline table.
+    pub(super) fn resolve(
+        self,
+        path: &Path,
+        read: &dyn Fn(&Path) -> Result<Motor>,
+    ) -> Result<Motor> {
         match self {
             MotorRef::Path(p) => {
                 let full = path.parent().unwrap_or(Path::new(".")).join(&p);
-                motor_file::read(&full)
+                read(&full)
             }
             MotorRef::Inline(m) => m
                 .into_motor("motor")

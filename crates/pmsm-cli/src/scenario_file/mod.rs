@@ -141,9 +141,25 @@ struct RawScenario {
 pub fn read(path: &Path) -> Result<Scenario> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
-    let raw: RawScenario = toml::from_str(&text).map_err(|e| toml_error(&e, &text, path))?;
+    parse(&text, path, &read_motor_file)
+}
+
+/// Reads the motor file at `path` from the file system.
+fn read_motor_file(path: &Path) -> Result<Motor> {
+    crate::motor_file::read(path)
+}
+
+/// Parses and validates the text of a scenario file named `path` (in messages, and the
+/// directory that a motor file's name is relative to); `motor_file` reads a motor file named
+/// by the scenario (from the file system for [`read`], from memory in a browser).
+pub fn parse(
+    text: &str,
+    path: &Path,
+    motor_file: &dyn Fn(&Path) -> Result<Motor>,
+) -> Result<Scenario> {
+    let raw: RawScenario = toml::from_str(text).map_err(|e| toml_error(&e, text, path))?;
     let shown = path.display();
-    let motor = raw.motor.resolve(path)?;
+    let motor = raw.motor.resolve(path, motor_file)?;
     // Table by table; the first bad key is the one reported.
     let check = || -> Result<(), ParamError> {
         in_range("duration_s", raw.duration_s, 1e-6, 1e4)?;
@@ -165,7 +181,7 @@ pub fn read(path: &Path) -> Result<Scenario> {
         bail!("{shown}: `control.sample_hz` must not exceed `inverter.pwm_hz`");
     }
     let model_motor =
-        crate::scenario_extras::model_motor(raw.control.model_motor.as_deref(), path)?;
+        crate::scenario_extras::model_motor(raw.control.model_motor.as_deref(), path, motor_file)?;
     let mut control = raw.control;
     if control.observer == ObserverKind::Auto {
         // Chosen for the motor the drive is told of (its inductances' ratio).

@@ -23,8 +23,8 @@ pub mod stats;
 pub use drive::{DriveSetup, build_drive};
 pub use output::{OUTPUT_COLUMNS, draw, plotted_angle_error};
 pub use plant::build_plant;
-pub use report::{Phase, current_limit_notice, phases, speed_ref_notice};
-pub use run_loop::{Row, Run, run_scenario, step_loop, wrap};
+pub use report::{Phase, current_limit_notice, phases, speed_ref_notice, summary};
+pub use run_loop::{Row, Run, Simulation, run_scenario, step_loop, wrap};
 
 use crate::scenario_file;
 use anyhow::Result;

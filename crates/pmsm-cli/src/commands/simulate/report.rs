@@ -4,6 +4,7 @@
 use super::{Row, Run, wrap};
 use crate::scenario_file::{ObserverKind, Scenario};
 use pmsm_core::DriveState;
+use std::fmt::Write as _;
 
 /// Statistics of one phase of a run (between two breakpoints of the references).
 #[derive(Clone, Debug)]
@@ -95,9 +96,17 @@ fn summarise(span_s: (f64, f64), span: &[&Row]) -> Option<Phase> {
     })
 }
 
-/// Prints what was run, the initial position found, one line per phase and the first fault.
+/// Prints [`summary`].
 pub(super) fn print_summary(sc: &Scenario, result: &Run) {
-    crate::outln!(
+    crate::out::emit(format_args!("{}", summary(sc, result)));
+}
+
+/// What was run, the initial position found, one line per phase and the first fault: the
+/// report of `pmsm simulate` (and of the workbench in a browser), one line each.
+pub fn summary(sc: &Scenario, result: &Run) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
         "pmsm simulate: {} on {}, {:?} estimator{}, start-up {}, {:.3} s at {:.0} Hz",
         sc.path.display(),
         sc.motor.name,
@@ -112,56 +121,59 @@ pub(super) fn print_summary(sc: &Scenario, result: &Run) {
         sc.control.sample_hz.unwrap_or(sc.inverter.pwm_hz)
     );
     if let Some(pmsm_core::IpdFault::NoPolarity { along, opposite }) = result.ipd_fallback {
-        crate::outln!(
+        let _ = writeln!(
+            s,
             "  initial position: the axis found, not the polarity (saturation along {along:.3}, \
              opposite {opposite:.3}): aligned instead"
         );
     }
     if let Some((est, truth)) = result.ipd {
         let err = wrap((est - truth).to_radians()).to_degrees();
-        crate::outln!(
+        let _ = writeln!(
+            s,
             "  initial position: detected {est:.1}°, true {truth:.1}° (error {err:+.1}° electrical)"
         );
     }
     if (result.deadtime_scale - 1.0).abs() > 1e-9 {
-        crate::outln!(
+        let _ = writeln!(
+            s,
             "  dead-time compensation: V_dead {:.3} times the one the drive was told (measured at standstill and while running)",
             result.deadtime_scale
         );
     }
-    print_phases(&phases(sc, &result.rows));
+    print_phases(&mut s, &phases(sc, &result.rows));
     if let Some((t, asked, used)) = result.speed_ref_limited {
-        crate::outln!(
+        let _ = writeln!(
+            s,
             "  speed reference above the maximum speed (above_max_speed) from t = {t:.4} s: \
              {asked:.0} r/min asked, {used:.0} r/min used"
         );
     }
     if let Some(notice) = speed_ref_notice(sc, &result.rows) {
-        crate::outln!("  {notice}");
+        let _ = writeln!(s, "  {notice}");
     }
     if let Some(notice) = current_limit_notice(&result.rows) {
-        crate::outln!("  {notice}");
+        let _ = writeln!(s, "  {notice}");
     }
     if let Some(r) = result
         .rows
         .iter()
         .find(|r| matches!(r.state, DriveState::Fault(_)))
     {
-        crate::outln!("  first fault at t = {:.4} s: {:?}", r.t_s, r.state);
+        let _ = writeln!(s, "  first fault at t = {:.4} s: {:?}", r.t_s, r.state);
     }
+    s
 }
 
-fn print_phases(phases: &[Phase]) {
-    crate::outln!(
+fn print_phases(s: &mut String, phases: &[Phase]) {
+    let _ = writeln!(
+        s,
         "  {:>15} {:>14} {:>9} {:>16} {:>10}  faults",
-        "phase (s)",
-        "speed err",
-        "(%)",
-        "angle err rms/max",
-        "I peak (A)"
+        "phase (s)", "speed err", "(%)", "angle err rms/max", "I peak (A)"
     );
     for ph in phases {
-        crate::outln!(
+        let _ = writeln!(
+            s,
             "  {:>6.3} – {:>6.3} {:>10.2} rpm {:>9} {:>7.4}/{:<7.4} rad {:>8.2}   {}",
             ph.span_s.0,
             ph.span_s.1,

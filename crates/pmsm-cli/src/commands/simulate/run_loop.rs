@@ -118,70 +118,124 @@ struct Sensed {
 
 /// Starts the drive and steps it and the plant over the scenario's duration, injecting its
 /// faults; one row per control sample.
-pub fn step_loop(sc: &Scenario, mut setup: DriveSetup, mut plant: Plant) -> Result<Run> {
-    let shown = sc.path.display();
-    let n = (sc.duration_s * setup.sample_hz).round() as usize;
-    let mut rows = Vec::with_capacity(n);
-    let mut sensed = Sensed {
-        i_abc_a: [0.0; 3],
-        codes: [0; 3],
-        vdc_v: sc.inverter.vdc_v,
-    };
-    let mut ipd = None;
-    let mut speed_ref_limited = None;
-    let mut injector = Injector::new(&sc.faults);
-    let mut recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
-    let startup = setup.config.design.startup;
-    let mut compare = CompareRegisters::new(setup.pwm_delay_periods);
-    setup.drive.start();
-    for k in 0..n {
-        let t = k as f64 / setup.sample_hz;
-        let speed_ref_rpm = sc.speed_ref.at(t);
-        let (input, out) = control_step(&mut setup, speed_ref_rpm, &sensed);
-        recorder.record(k, &setup.drive, &input);
-        if let (None, Some(pmsm_core::SpeedRefLimit::AboveMaxSpeed { used, .. })) =
-            (speed_ref_limited, setup.drive.speed_ref_limit())
-        {
-            let rpm = setup.base.speed_rad_s(used) / setup.model.p() * 60.0 / TAU;
-            speed_ref_limited = Some((t, speed_ref_rpm, rpm));
+pub fn step_loop(sc: &Scenario, setup: DriveSetup, plant: Plant) -> Result<Run> {
+    let mut sim = Simulation::new(sc, setup, plant);
+    sim.advance(sc, usize::MAX)?;
+    Ok(sim.finish())
+}
+
+/// A run in progress, stepped a number of samples at a time (a browser shows its progress
+/// between them); [`step_loop`] is one call of [`Simulation::advance`] over all of them.
+pub struct Simulation {
+    setup: DriveSetup,
+    plant: Plant,
+    /// Samples in all, and the next one.
+    n: usize,
+    k: usize,
+    rows: Vec<Row>,
+    sensed: Sensed,
+    ipd: Option<(f64, f64)>,
+    speed_ref_limited: Option<(f64, f64, f64)>,
+    injector: Injector,
+    recorder: super::super::fault_dump::Recorder,
+    startup: pmsm_core::StartupMode,
+    compare: CompareRegisters,
+}
+
+impl Simulation {
+    /// The drive of `setup` started against `plant`, at the scenario's first sample.
+    pub fn new(sc: &Scenario, mut setup: DriveSetup, plant: Plant) -> Self {
+        let n = (sc.duration_s * setup.sample_hz).round() as usize;
+        let recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
+        let startup = setup.config.design.startup;
+        let compare = CompareRegisters::new(setup.pwm_delay_periods);
+        setup.drive.start();
+        Self {
+            setup,
+            plant,
+            n,
+            k: 0,
+            rows: Vec::with_capacity(n),
+            sensed: Sensed {
+                i_abc_a: [0.0; 3],
+                codes: [0; 3],
+                vdc_v: sc.inverter.vdc_v,
+            },
+            ipd: None,
+            speed_ref_limited: None,
+            injector: Injector::new(&sc.faults),
+            recorder,
+            startup,
+            compare,
         }
-        if ipd.is_none() {
-            ipd = ipd_detected(&setup.drive, &plant);
-        }
-        rows.push(record(t, speed_ref_rpm, &setup, &out, &plant));
-        injector
-            .apply(t, &mut plant, sensed.codes)
-            .map_err(|e| anyhow!("{shown}: t = {t:.6} s: {e}"))?;
-        if let Some(th) = &sc.thermal {
-            th.apply(&mut plant)
-                .map_err(|e| anyhow!("{shown}: thermal: {e}"))?;
-        }
-        let load_nm = sc.load.at(t);
-        let periods = setup.pwm_per_sample;
-        advance_plant(
-            &mut plant,
-            &out,
-            &mut compare,
-            load_nm,
-            periods,
-            &mut sensed,
-        )
-        .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
     }
-    Ok(Run {
-        rows,
-        ipd,
-        recorder,
-        speed_ref_limited,
-        startup,
-        ipd_fallback: setup.drive.ipd_fallback(),
-        deadtime_scale: setup.drive.deadtime_scale().to_num::<f64>(),
-        learner: setup
-            .drive
-            .task()
-            .learner()
-            .map(pmsm_core::DistortionLearner::status),
-    })
+
+    /// Samples done and in all.
+    pub fn progress(&self) -> (usize, usize) {
+        (self.k, self.n)
+    }
+
+    /// Steps at most `samples` more samples of `sc` (the scenario it was built from); true
+    /// once the run is complete.
+    pub fn advance(&mut self, sc: &Scenario, samples: usize) -> Result<bool> {
+        let shown = sc.path.display();
+        let end = self.n.min(self.k.saturating_add(samples));
+        while self.k < end {
+            let (k, setup, plant) = (self.k, &mut self.setup, &mut self.plant);
+            let t = k as f64 / setup.sample_hz;
+            let speed_ref_rpm = sc.speed_ref.at(t);
+            let (input, out) = control_step(setup, speed_ref_rpm, &self.sensed);
+            self.recorder.record(k, &setup.drive, &input);
+            if let (None, Some(pmsm_core::SpeedRefLimit::AboveMaxSpeed { used, .. })) =
+                (self.speed_ref_limited, setup.drive.speed_ref_limit())
+            {
+                let rpm = setup.base.speed_rad_s(used) / setup.model.p() * 60.0 / TAU;
+                self.speed_ref_limited = Some((t, speed_ref_rpm, rpm));
+            }
+            if self.ipd.is_none() {
+                self.ipd = ipd_detected(&setup.drive, plant);
+            }
+            self.rows.push(record(t, speed_ref_rpm, setup, &out, plant));
+            self.injector
+                .apply(t, plant, self.sensed.codes)
+                .map_err(|e| anyhow!("{shown}: t = {t:.6} s: {e}"))?;
+            if let Some(th) = &sc.thermal {
+                th.apply(plant)
+                    .map_err(|e| anyhow!("{shown}: thermal: {e}"))?;
+            }
+            let load_nm = sc.load.at(t);
+            let periods = setup.pwm_per_sample;
+            advance_plant(
+                plant,
+                &out,
+                &mut self.compare,
+                load_nm,
+                periods,
+                &mut self.sensed,
+            )
+            .map_err(|e| anyhow!("{shown}: the plant failed at t = {t:.6} s: {e}"))?;
+            self.k += 1;
+        }
+        Ok(self.k >= self.n)
+    }
+
+    /// The run so far (all of it once [`Simulation::advance`] said so).
+    pub fn finish(self) -> Run {
+        let drive = &self.setup.drive;
+        Run {
+            rows: self.rows,
+            ipd: self.ipd,
+            recorder: self.recorder,
+            speed_ref_limited: self.speed_ref_limited,
+            startup: self.startup,
+            ipd_fallback: drive.ipd_fallback(),
+            deadtime_scale: drive.deadtime_scale().to_num::<f64>(),
+            learner: drive
+                .task()
+                .learner()
+                .map(pmsm_core::DistortionLearner::status),
+        }
+    }
 }
 
 /// One drive step on what the sensors read, towards `speed_ref_rpm`: its input and output.
