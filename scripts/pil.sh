@@ -10,7 +10,8 @@
 #      Cortex-M4 also of the drive and the plant in a closed loop on the target) and the
 #      drive's two steps within their instruction budgets (below: the interrupt step
 #      `isr_<estimator>` with the current-model MRAS by default, with MTPA and field weakening
-#      on (`isr_flux`) and with the voltage on the circle (`isr_saturated`), the back-EMF
+#      on (`isr_flux`), with the voltage on the circle (`isr_saturated`) and with the
+#      high-frequency injection on (`isr_injection`, docs/injection.md), the back-EMF
 #      estimators' in a closed loop; the task step `task`, once per `task_period` samples),
 #      else `PIL FAIL` (exit 1);
 #   5. builds and runs, on both machines, the image of feature `identify` (the
@@ -75,6 +76,7 @@ declare -A isr_budget=(
   [cortex-m4:isr_mras_current]=1500 [cortex-m0:isr_mras_current]=4000
   [cortex-m4:isr_flux]=1500 [cortex-m0:isr_flux]=4000
   [cortex-m4:isr_saturated]=1500 [cortex-m0:isr_saturated]=4000
+  [cortex-m4:isr_injection]=1500
   [cortex-m4:isr_nlo]=2600 [cortex-m0:isr_nlo]=6500
   [cortex-m4:isr_ao]=2300 [cortex-m0:isr_ao]=5600
   [cortex-m4:isr_mras_emf]=3100 [cortex-m0:isr_mras_emf]=7700
@@ -127,7 +129,10 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
   # The interrupt step's budget (worst case over the recorded run), with the default
   # configuration, with MTPA and field weakening on, and with the voltage on the current
   # loops' circle and the modulator's hexagon (the bus read at a quarter); the task's.
-  for step in isr_mras_current isr_flux isr_saturated task; do
+  steps="isr_mras_current isr_flux isr_saturated task"
+  # The injection is built for the Cortex-M4 only (examples/qemu/firmware/Cargo.toml).
+  [[ $cpu == cortex-m4 ]] && steps+=" isr_injection"
+  for step in $steps; do
     p="$(check_budget "$run_log" "$cpu" "$step")"
     [[ -z $p ]] || problems+=("$p")
   done
@@ -189,7 +194,8 @@ else
   log "the identification's image does not build"
 fi
 
-if [[ "${components[cortex-m4]}" != "${components[cortex-m0]}" ]]; then
+# The same components on both, but the injection's (the Cortex-M4's only).
+if [[ "${components[cortex-m4]/isr_injection /}" != "${components[cortex-m0]}" ]]; then
   status=1
   log "the two machines report different components:"
   log "  cortex-m4: ${components[cortex-m4]}"

@@ -35,6 +35,7 @@ const FIELDS = {
     ["control.field_weakening", "field weakening", "", "bool"],
     ["control.overmodulation", "overmodulation", "", "bool"],
     ["control.tracking", "R/ψ tracking", "", "bool"],
+    ["control.injection", "HF injection at standstill", "", "bool"],
     ["control.current_bandwidth_hz", "current loop bandwidth", "Hz", "num"],
     ["control.speed_bandwidth_hz", "speed loop bandwidth", "Hz", "num"],
   ],

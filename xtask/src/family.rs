@@ -11,7 +11,7 @@
 //! `--write` replaces the `## Random motor family` section of docs/PERFORMANCE.md.
 
 mod draw;
-mod judge;
+pub(crate) mod judge;
 mod report;
 
 use crate::progress;

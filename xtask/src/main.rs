@@ -16,6 +16,8 @@
 //!   [--seeds A-B] [--check] [--write]`: motors drawn from classes written from them.
 //! - `cargo xtask robustness [R L PSI]`: prints the parameter-error table of
 //!   `docs/PERFORMANCE.md` (tracking off and on) and the heating run, or one cell's details.
+//! - `cargo xtask injection [N] [--seeds A-B] [--off]`: the high-frequency injection on the
+//!   random family's interior motors at standstill and creeping under load (`injection.rs`).
 //! - `cargo xtask web [--port N] [--no-build] [--no-serve]`: builds the workbench (the drive in
 //!   WebAssembly and its page) and serves it on 127.0.0.1 (`web.rs`, docs/workbench.md).
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
@@ -29,6 +31,7 @@ mod examples;
 mod family;
 mod family_seeds;
 mod identify_family;
+mod injection;
 mod light_load;
 mod map;
 mod observers_motor_a;
@@ -116,14 +119,16 @@ fn main() -> Result<()> {
             );
             Ok(())
         }
+        "injection" => injection::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "web" => web::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "plant-speed" => {
             print!("{}", plant_speed::section()?);
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | {} | identify-family [N] [--seed S] | {}",
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | {} | identify-family [N] [--seed S] | {} | {}",
             family::USAGE,
+            injection::USAGE,
             web::USAGE
         ),
     }

@@ -134,10 +134,11 @@ pub use identify::{
 };
 pub use ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdOutput, IpdResult};
 pub use num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64};
+pub use observer::injection::MIN_SALIENCY as INJECTION_MIN_SALIENCY;
 pub use observer::{
-    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind, MrasCurrent,
-    MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig, MrasModel, Nlo, NloConfig,
-    ObserverInput, default_observer_gain,
+    AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind,
+    InjectionDesign, MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasEmf, MrasEmfConfig,
+    MrasModel, Nlo, NloConfig, ObserverInput, default_observer_gain,
 };
 pub use params::{InverterParams, MotorParams, ParamError, ParamReason};
 pub use recorder::{FaultRecorder, FaultSample};

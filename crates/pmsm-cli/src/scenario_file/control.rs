@@ -190,6 +190,9 @@ pub struct Control {
     /// compensation to it (`pmsm_core::DistortionLearner`, docs/distortion.md; default: the
     /// drive's, `pmsm_core::DriveDesign::deadtime_learning`).
     pub deadtime_learning: Option<bool>,
+    /// High-frequency injection at standstill and low speed on a salient motor
+    /// (`pmsm_core::InjectionDesign`, docs/injection.md; default off).
+    pub injection: Option<bool>,
 }
 
 impl Control {

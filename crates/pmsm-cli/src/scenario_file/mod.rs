@@ -42,6 +42,8 @@
 //! mtpa = false                     # maximum torque per ampere on interior motors (default on)
 //! field_weakening = false          # field weakening, speed clamped to the maximum (default on)
 //! overmodulation = true            # optional: beyond the circle up to six-step
+//! injection = true                 # optional: high-frequency injection at standstill and
+//!                                  # low speed on a salient motor (docs/injection.md)
 //!
 //! [initial]
 //! theta_e_deg = 40.0

@@ -67,6 +67,9 @@ pub(crate) struct IsrConfig {
     pub mid_turns: i32,
     /// `mid_turns − 2`, for the estimator's frames (`isr::mid_frame`).
     pub mid_frame_k: i32,
+    /// [`DriveDesign::injection`], designed.
+    #[cfg(feature = "injection")]
+    pub injection: Option<crate::observer::InjectionConfig>,
 }
 
 /// What the task works with, per unit and in task periods ([`TASK_PERIOD`] samples).
@@ -217,6 +220,22 @@ impl DriveConfig {
                 ),
             }
             .into());
+        }
+        #[cfg(feature = "injection")]
+        let injection = match design.injection {
+            Some(d) => Some(crate::observer::InjectionConfig::new(
+                motor,
+                inverter,
+                &base,
+                d,
+                design.pwm_delay_samples,
+            )?),
+            None => None,
+        };
+        // With the injection, the angle at low speed is observed: no d current holds it.
+        #[cfg(feature = "injection")]
+        if design.injection.is_some() {
+            design.low_speed_id_a = 0.0;
         }
         if design.speed.decimation != TASK_PERIOD {
             return Err(ParamError {
@@ -374,6 +393,8 @@ impl DriveConfig {
             pwm_delay: design.pwm_delay_samples,
             mid_turns: 2 * design.pwm_delay_samples as i32 + 1,
             mid_frame_k: 2 * design.pwm_delay_samples as i32 - 1,
+            #[cfg(feature = "injection")]
+            injection,
         };
         let task = TaskConfig {
             estimator: design.estimator,

@@ -231,6 +231,13 @@ pub struct DriveDesign {
     /// Learn the inverter's distortion voltage while running and rescale the dead-time
     /// compensation (the task's [`super::DistortionLearner`], docs/distortion.md).
     pub deadtime_learning: bool,
+    /// High-frequency injection at standstill and low speed on a salient motor
+    /// (docs/injection.md): below [`crate::InjectionDesign::on_below`] of rated speed the angle comes
+    /// from the saliency instead of the estimator, and the low-speed d current is off. `None`
+    /// (the default) for none. With the feature `injection` only: a firmware that does not
+    /// inject carries neither its code nor its state.
+    #[cfg(feature = "injection")]
+    pub injection: Option<crate::observer::InjectionDesign>,
 }
 
 /// Speed-loop bandwidth that keeps a light rotor under a load step: `ω_n τ_b` with `τ_b` the
@@ -352,6 +359,8 @@ impl DriveDesign {
             // keep theirs (it would only move the current loops' feed-forward under them).
             tracking: estimator == EstimatorKind::MrasCurrent && cfg!(feature = "tracking"),
             deadtime_learning: false,
+            #[cfg(feature = "injection")]
+            injection: None,
             // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
             // oscillate at no load; a d current switched in at their handover disturbed an NLO
             // start of the random family.

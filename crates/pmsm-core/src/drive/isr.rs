@@ -19,6 +19,8 @@
 //! sample the task decides from.
 
 mod control;
+#[cfg(feature = "injection")]
+mod injection;
 mod period;
 
 use super::config::IsrConfig;
@@ -105,6 +107,11 @@ pub struct DriveIsr {
     /// divided by the period's length (so they are means).
     omega_sum: i32,
     power_sum: [u32; 3],
+    /// The high-frequency injection, and whether it gives the angle now.
+    #[cfg(feature = "injection")]
+    injection: crate::observer::Injection,
+    #[cfg(feature = "injection")]
+    injecting: bool,
 }
 
 /// The period's length as a shift: its sums add each term shifted by it.
@@ -147,6 +154,10 @@ impl DriveIsr {
             sum: 0,
             omega_sum: 0,
             power_sum: [0; 3],
+            #[cfg(feature = "injection")]
+            injection: crate::observer::Injection::default(),
+            #[cfg(feature = "injection")]
+            injecting: false,
         }
     }
 
@@ -253,6 +264,12 @@ impl DriveIsr {
         let i = clarke(input.i_abc);
         let setpoint = match self.phase {
             Phase::Run => {
+                #[cfg(feature = "injection")]
+                if self.config.injection.is_some()
+                    && let Some(setpoint) = self.injected(i)
+                {
+                    return self.control(input, i, setpoint);
+                }
                 let e = self.estimate(i);
                 let limit = self.config.protection.overspeed.to_bits();
                 if !(-limit..=limit).contains(&e.omega.to_bits()) {

@@ -77,6 +77,7 @@ pub trait Estimator {
 pub(crate) mod ao;
 pub(crate) mod direction;
 pub(crate) mod emf;
+pub(crate) mod injection;
 pub(crate) mod mras_current;
 pub(crate) mod mras_emf;
 pub(crate) mod nlo;
@@ -84,6 +85,9 @@ pub(crate) mod nlo;
 pub use ao::{Ao, AoConfig};
 pub(crate) use direction::Direction;
 pub(crate) use emf::{EmfMeter, EmfMeterConfig};
+pub use injection::InjectionDesign;
+#[cfg(feature = "injection")]
+pub(crate) use injection::{Injection, InjectionConfig};
 pub use mras_emf::{MrasEmf, MrasEmfConfig};
 pub use nlo::{Nlo, NloConfig};
 

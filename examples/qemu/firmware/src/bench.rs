@@ -307,6 +307,15 @@ fn edited_config(edit: fn(&mut DriveDesign, &Setup)) -> Option<DriveConfig> {
     b.config(design).ok()
 }
 
+/// The drive of the `drive` case with the high-frequency injection on (docs/injection.md):
+/// below its hand-over speed the injection's loop replaces the estimator's update. On the
+/// Cortex-M4 only (the one with atomics here), whose build has the feature `injection`.
+#[cfg(target_has_atomic = "32")]
+#[inline(never)]
+fn drive_with_injection() -> Option<DriveConfig> {
+    edited_config(|design, _| design.injection = Some(pmsm_core::InjectionDesign::default()))
+}
+
 /// The default drive with its undervoltage trip at a fifth of the nominal bus, for the
 /// `drive` case's inputs with the bus read at a quarter of the recorded value
 /// ([`LOW_BUS_EIGHTHS`]): the ramp's voltage is then beyond the circle, and the current
@@ -750,6 +759,10 @@ fn run_drive(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) -> Result<(), 
         }
         if let Some(st) = bench_drive_sides(meter, &rec, drive_on_low_bus, LOW_BUS_EIGHTHS) {
             report("isr_saturated", &st.isr);
+        }
+        #[cfg(target_has_atomic = "32")]
+        if let Some(st) = bench_drive_sides(meter, &rec, drive_with_injection, 8) {
+            report("isr_injection", &st.isr);
         }
     }
     Ok(())

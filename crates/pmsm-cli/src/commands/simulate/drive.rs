@@ -163,6 +163,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     let set = |x: &mut bool, on: Option<bool>| *x = on.unwrap_or(*x);
     set(&mut design.tracking, c.tracking);
     set(&mut design.deadtime_learning, c.deadtime_learning);
+    if let Some(on) = c.injection {
+        design.injection = on.then(pmsm_core::InjectionDesign::default);
+    }
     set(&mut design.flux.mtpa, c.mtpa);
     set(&mut design.flux.field_weakening, c.field_weakening);
     design.overmodulation = c.overmodulation;

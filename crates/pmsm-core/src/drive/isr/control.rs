@@ -59,6 +59,9 @@ impl DriveIsr {
                 (theta + Angle(step.wrapping_mul(self.config.mid_turns) >> 1)).sin_cos()
             }
         };
+        #[cfg(feature = "injection")]
+        let v_ref = inverse_park(self.with_injection(out.v), sc_mid);
+        #[cfg(not(feature = "injection"))]
         let v_ref = inverse_park(out.v, sc_mid);
         // Dead-time compensation, then the modulator.
         let v_dt = self.deadtime_vector(input.vdc, i_dq, i_ref, sc_mid);

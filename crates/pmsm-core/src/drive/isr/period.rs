@@ -127,6 +127,11 @@ impl DriveIsr {
 
     /// Enters the mode the task asks for.
     fn enter(&mut self, mode: Mode) {
+        // Every mode starts without the injection; the closed loop hands over to it itself.
+        #[cfg(feature = "injection")]
+        {
+            self.injecting = false;
+        }
         match mode {
             Mode::Off => self.phase = Phase::Off,
             Mode::Fault(f) => {

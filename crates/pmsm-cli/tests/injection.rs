@@ -1,0 +1,143 @@
+//! The high-frequency injection (`[control] injection = true`, docs/injection.md) on motor B
+//! through `pmsm simulate`'s own code: standstill without the d current, standstill and a
+//! reversal through zero under load, the hand-over to the estimator and back.
+
+use pmsm_cli::commands::simulate::stats::{first_fault, max_angle, rms_angle, window};
+use pmsm_cli::commands::simulate::{Row, run_scenario};
+use pmsm_core::DriveState;
+
+mod common;
+use common::scenario_text;
+
+/// Motor B on its switching inverter with the injection, from `theta0_deg`, for `duration`
+/// s, with the speed and load tables given.
+fn motor_b(duration: f64, theta0_deg: f64, speed: &str, load: &str) -> Vec<Row> {
+    let text = format!(
+        "duration_s = {duration}\nmotor = \"motor-b.toml\"\n\
+         [inverter]\nvdc_v = 540.0\npwm_hz = 14000.0\ndead_time_s = 2e-6\nmodel = \"switching\"\n\
+         [control]\ninjection = true\n\
+         [initial]\ntheta_e_deg = {theta0_deg}\n\
+         [speed_ref]\n{speed}\n[load]\n{load}\n"
+    );
+    let sc = scenario_text("injection", &text);
+    run_scenario(&sc).unwrap().rows
+}
+
+/// The rotor's electrical angle, unwrapped, over `rows`: its largest distance from the first.
+fn rotor_travel(rows: &[&Row]) -> f64 {
+    let mut angle = 0.0f64;
+    let mut worst = 0.0f64;
+    for w in rows.windows(2) {
+        angle += pmsm_cli::commands::simulate::wrap(w[1].theta_e_rad - w[0].theta_e_rad);
+        worst = worst.max(angle.abs());
+    }
+    worst
+}
+
+/// Current per phase, rms, of the rows (the plant's rotor-frame currents).
+fn current_rms(rows: &[&Row]) -> f64 {
+    let n = rows.len().max(1) as f64;
+    (rows
+        .iter()
+        .map(|r| r.i_dq_a[0].powi(2) + r.i_dq_a[1].powi(2))
+        .sum::<f64>()
+        / n
+        / 2.0)
+        .sqrt()
+}
+
+#[test]
+fn standstill_without_load_costs_the_injection_not_a_d_current() {
+    let rows = motor_b(
+        0.8,
+        137.0,
+        "t_s = [0.0]\nrpm = [0.0]",
+        "t_s = [0.0]\nnm = [0.0]",
+    );
+    assert!(first_fault(&rows).is_none());
+    let still = window(&rows, 0.4, 0.8);
+    assert!(still.iter().all(|r| r.state == DriveState::Run));
+    let i = current_rms(&still);
+    // Rated 2.53 A rms; without the injection the low-speed current holds 2.53 A.
+    assert!(i <= 0.1 * 2.53, "{i} A rms");
+    let rms = rms_angle(&still);
+    assert!(rms <= 0.05, "{rms} rad");
+}
+
+#[test]
+fn standstill_under_half_and_rated_load_holds_the_angle_and_the_rotor() {
+    for (load, theta0) in [(2.0, 37.0), (4.0, 211.0)] {
+        let rows = motor_b(
+            2.5,
+            theta0,
+            "t_s = [0.0]\nrpm = [0.0]",
+            &format!("t_s = [0.0, 0.3, 0.31]\nnm = [0.0, 0.0, {load}]"),
+        );
+        assert!(first_fault(&rows).is_none(), "{load} N·m");
+        // The step is taken by 0.5 s; then 2 s under load.
+        let held = window(&rows, 0.5, 2.5);
+        let rms = rms_angle(&held);
+        let travel = rotor_travel(&held);
+        println!("{load} N·m: {rms:.4} rad rms, rotor within {travel:.4} rad");
+        assert!(rms <= 0.05, "{load} N·m: {rms} rad rms");
+        assert!(travel <= 0.1, "{load} N·m: the rotor moved {travel} rad");
+    }
+}
+
+#[test]
+fn a_reversal_through_zero_under_rated_load_keeps_the_angle() {
+    // +3 % to −3 % of rated speed (90 r/min) in 2 s, rated load throughout.
+    let rows = motor_b(
+        3.5,
+        250.0,
+        "t_s = [0.0, 0.2, 0.5, 1.0, 3.0]\nrpm = [0.0, 0.0, 90.0, 90.0, -90.0]",
+        "t_s = [0.0, 0.6, 0.61]\nnm = [0.0, 0.0, 4.0]",
+    );
+    assert!(first_fault(&rows).is_none());
+    let running: Vec<&Row> = window(&rows, 0.3, 3.5)
+        .into_iter()
+        .filter(|r| r.state == DriveState::Run)
+        .collect();
+    let worst = max_angle(&running);
+    assert!(worst <= 0.1, "{worst} rad");
+    let end = window(&rows, 3.2, 3.5);
+    let speed = end.iter().map(|r| r.speed_rpm).sum::<f64>() / end.len() as f64;
+    assert!((speed + 90.0).abs() < 5.0, "{speed} r/min");
+}
+
+#[test]
+fn the_estimator_takes_over_above_the_hand_over_and_gives_back_below() {
+    // To 800 r/min under no load and back to 20 r/min.
+    let rows = motor_b(
+        2.0,
+        137.0,
+        "t_s = [0.0, 0.1, 0.6, 1.2, 1.5]\nrpm = [0.0, 0.0, 800.0, 800.0, 20.0]",
+        "t_s = [0.0]\nnm = [0.0]",
+    );
+    assert!(first_fault(&rows).is_none());
+    let running: Vec<&Row> = window(&rows, 0.2, 2.0)
+        .into_iter()
+        .filter(|r| r.state == DriveState::Run)
+        .collect();
+    let worst = max_angle(&running);
+    assert!(worst <= 0.1, "{worst} rad");
+    let end = window(&rows, 1.8, 2.0);
+    let speed = end.iter().map(|r| r.speed_rpm).sum::<f64>() / end.len() as f64;
+    assert!((speed - 20.0).abs() < 2.0, "{speed} r/min");
+}
+
+#[test]
+fn a_surface_motor_is_refused_by_name() {
+    let text = "duration_s = 0.1\n\
+        motor = { pole_pairs = 3, rs_ohm = 1.6, ld_h = 0.0134, lq_h = 0.0134, flux_wb = 0.288, j_kg_m2 = 0.04 }\n\
+        [inverter]\nvdc_v = 300.0\npwm_hz = 10000.0\n[control]\ninjection = true\n";
+    let path = std::env::temp_dir().join(format!(
+        "pmsm-injection-surface-{}.toml",
+        std::process::id()
+    ));
+    std::fs::write(&path, text).unwrap();
+    let sc = pmsm_cli::scenario_file::read(&path).unwrap();
+    std::fs::remove_file(&path).ok();
+    let e = format!("{:#}", run_scenario(&sc).unwrap_err());
+    assert!(e.contains("injection.saliency"), "{e}");
+}
