@@ -4,7 +4,7 @@
 //! ```text
 //! inject   v_d̂ += s_n V_h,  s_n = ±1 alternating every sample (a square wave at f_s/2)
 //! measure  d2_n = i_n − 2 i_{n−1} + i_{n−2}       (αβ; the fundamental's slope cancels)
-//!          ε_n = s_{n−1−d} · q̂(d2_n)                (d: the PWM update delay, samples)
+//!          ε_n = sign(d̂(d2_n)) · q̂(d2_n)             (= s_{n−1−d} q̂(d2_n), d the PWM delay)
 //!              = V_h T_s (1/L_d − 1/L_q) sin 2(θ − θ̂)   ≈ 4K (θ − θ̂),  K = V_h T_s (1/L_d − 1/L_q)/2
 //! track    θ̂_{n+1} = θ̂_n + ω̂_n T_s + l₁ T_s e_n                   e_n = ε_n/4K
 //!          ω̂_{n+1} = ω̂_n + (b î_q − â_n) T_s + l₂ T_s e_n           b = p K_T/J
@@ -38,7 +38,7 @@
 //! | `V_h` | [`Pu`] of `V_b` | at most half of `V_b` |
 //! | `θ̂` | [`Angle`] (2³² per turn) | wrapping |
 //! | `ω̂` | [`Pu`] of `ω_b` | within ±`ω_max` |
-//! | `l₁` | `Coef<16>`, Angle LSB per `Pu` LSB of `ε` | below 2¹⁵ |
+//! | `l₁` | `Coef<12>`, Angle LSB per `Pu` LSB of `ε` | below 2¹⁹ |
 //! | `l₂` | `Coef<30>`, `Pu` LSB of speed per `Pu` LSB of `ε` | below 2 |
 //! | `l₃` | `Coef<24>`, 2⁻⁸ `Pu` LSB of speed per sample per `Pu` LSB of `ε` | below 2⁷ |
 //! | `b` | `Coef<30>`, `Pu` LSB of speed per sample per `Pu` LSB of current | below 2 |
@@ -48,7 +48,7 @@
 use crate::angle::{Angle, SinCos};
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, park};
-use crate::num::{Coef, Pu, dot_unit, pu_from_f64};
+use crate::num::{Coef, Pu, pu_from_f64};
 use crate::observer::{Estimate, Frame};
 use crate::params::{InverterParams, MotorParams};
 use crate::units::PerUnit;
@@ -95,15 +95,12 @@ pub const MIN_SALIENCY: f64 = 1.1;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct InjectionConfig {
     v_h: Pu,
-    k_theta: Coef<16>,
+    k_theta: Coef<12>,
     k_omega: Coef<30>,
     k_load: Coef<24>,
     accel: Coef<30>,
     /// Angle LSB per sample per `Pu` LSB of speed, as the open loop's.
     turn_per_speed: Coef<24>,
-    /// The demodulating sign is the next injection's (`s_{n−1−d} = s_n` for odd `d`) or its
-    /// opposite (even `d`).
-    same_sign: bool,
     /// Samples after a restart before the error is read: the injection's first response
     /// reaches the second difference `d + 3` samples later.
     settle: u8,
@@ -205,7 +202,6 @@ impl InjectionConfig {
                 base.omega_e_rad_s * ts / (Angle::RAD_PER_LSB * 16_777_216.0),
             )
             .ok_or(gain("sample_hz", 1.0 / ts))?,
-            same_sign: pwm_delay % 2 == 1,
             settle: pwm_delay + 3,
             omega_max: pu_from_f64(design.off_above * 2.0 * rated / base.omega_e_rad_s),
             on_below: pu_from_f64(design.on_below * rated / base.omega_e_rad_s),
@@ -265,15 +261,17 @@ impl Injection {
             beta: second(i.beta, self.i1.beta, self.i2.beta),
         };
         let i_dq = park(mean, self.sc);
-        // Only its component across the axis: Park's q.
-        let across = dot_unit(d2.beta, self.sc.cos, d2.alpha, self.sc.sin.saturating_neg());
+        let d2 = park(d2, self.sc);
+        // The injection that made this response, by its own sign along the axis (which
+        // `(cos² Δθ/L_d + sin² Δθ/L_q) > 0` keeps): whatever delay the PWM puts between the
+        // command and the current, the demodulation follows the voltage that acted.
         let error = if self.settle > 0 {
             self.settle -= 1;
             0
-        } else if self.positive == c.same_sign {
-            across.to_bits()
+        } else if d2.d >= Pu::ZERO {
+            d2.q.to_bits()
         } else {
-            across.to_bits().saturating_neg()
+            d2.q.to_bits().saturating_neg()
         };
         let estimate = Estimate {
             theta: self.theta,

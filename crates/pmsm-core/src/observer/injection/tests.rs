@@ -19,7 +19,6 @@ struct Reference {
     k_omega: f64,
     k_load: f64,
     accel: f64,
-    same_sign: bool,
     omega_max: f64,
     ts: f64,
 }
@@ -42,7 +41,6 @@ impl Reference {
                 let m = motor_b();
                 m.p() * m.kt_nm_per_a / m.j_kg_m2
             },
-            same_sign: c.same_sign,
             omega_max: c.omega_max.to_num::<f64>() * base.omega_e_rad_s,
             ts,
         }
@@ -56,12 +54,13 @@ impl Reference {
         ];
         let (s, c) = libm::sincos(self.theta);
         let across = d2[1] * c - d2[0] * s;
+        let along = d2[0] * c + d2[1] * s;
         let mean = [(i[0] + self.i1[0]) / 2.0, (i[1] + self.i1[1]) / 2.0];
         let i_q = mean[1] * c - mean[0] * s;
         let error = if self.settle > 0 {
             self.settle -= 1;
             0.0
-        } else if self.positive == self.same_sign {
+        } else if along >= 0.0 {
             across
         } else {
             -across
