@@ -166,5 +166,8 @@ fn a_surface_motor_is_refused_by_name() {
     let sc = pmsm_cli::scenario_file::read(&path).unwrap();
     std::fs::remove_file(&path).ok();
     let e = format!("{:#}", run_scenario(&sc).unwrap_err());
-    assert!(e.contains("injection.saliency"), "{e}");
+    assert!(
+        e.contains("`injection`") && e.contains("L_q/L_d of at least 1.1"),
+        "{e}"
+    );
 }

@@ -117,6 +117,8 @@ pub use control::{
 };
 pub use cordic::{Polar, polar};
 pub use deadtime::{CurrentSource, DeadTimeConfig, DeadTimeDesign, DeadTimeMode, DeviceParams};
+#[cfg(feature = "injection")]
+pub use drive::InjectionFigures;
 pub use drive::{
     ACTIVE_SHORT, DEFAULT_HEALTH_LIMIT_PU, Drive, DriveConfig, DriveDesign, DriveInput, DriveIsr,
     DriveOptions, DriveOutput, DriveState, DriveTask, Fault, Handoff, MAX_PWM_DELAY_SAMPLES,

@@ -467,6 +467,35 @@ impl DriveConfig {
     pub fn deadtime_compensation(&self) -> bool {
         self.design.deadtime.mode != DeadTimeMode::Off
     }
+
+    /// The high-frequency injection as designed, `None` without it: its amplitude (V), its
+    /// frequency (Hz, half the sampling rate), the current it moves across the axis at 45° of
+    /// error (`K`, A) and the peak-to-peak ripple it makes along the d axis (A).
+    #[cfg(feature = "injection")]
+    pub fn injection(&self) -> Option<InjectionFigures> {
+        let c = self.isr.injection.as_ref()?;
+        let ts = self.base.sample_s;
+        Some(InjectionFigures {
+            amplitude_v: c.amplitude_v,
+            frequency_hz: 0.5 / ts,
+            response_a: c.response_a,
+            ripple_a: c.amplitude_v * ts / self.motor.ld_h,
+        })
+    }
+}
+
+/// What [`DriveConfig::injection`] reports.
+#[cfg(feature = "injection")]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InjectionFigures {
+    /// Injected amplitude along the estimated d axis, V.
+    pub amplitude_v: f64,
+    /// The square wave's frequency, Hz.
+    pub frequency_hz: f64,
+    /// The current across the axis at 45° of angle error, A (`K` of docs/injection.md).
+    pub response_a: f64,
+    /// Peak-to-peak current ripple along the d axis, A.
+    pub ripple_a: f64,
 }
 
 /// The modulator: the linear one, or overmodulating with pulses shorter than the dead time

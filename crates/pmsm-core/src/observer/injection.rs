@@ -50,7 +50,7 @@ use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, park};
 use crate::num::{Coef, Pu, pu_from_f64};
 use crate::observer::{Estimate, Frame};
-use crate::params::{InverterParams, MotorParams};
+use crate::params::{InverterParams, MotorParams, ParamError, ParamReason};
 use crate::units::PerUnit;
 
 /// How the injection is designed; [`InjectionDesign::default`] computes everything from the
@@ -117,8 +117,8 @@ impl InjectionConfig {
     /// Designs the injection for `motor` on `inverter`, the bases `base` and a PWM update
     /// delay of `pwm_delay` samples.
     ///
-    /// Errors: [`ConfigError::Param`]-like gains ([`ConfigError::Gain`]) for
-    /// `injection.saliency` (`L_q/L_d` below [`MIN_SALIENCY`]), `injection.amplitude_v`
+    /// Errors: [`ConfigError::Param`] for `injection` on a motor whose `L_q/L_d` is below
+    /// [`MIN_SALIENCY`]; [`ConfigError::Gain`] for `injection.amplitude_v`
     /// (outside `(0, V_b/2]`), `injection.bandwidth_rad_s` (outside `(0, 0.05/T_s]`) and
     /// `injection.hand_over` (`on_below` not below `off_above`, or beyond 0.5).
     pub fn new(
@@ -131,12 +131,14 @@ impl InjectionConfig {
         let ts = base.sample_s;
         let saliency = motor.lq_h / motor.ld_h;
         if saliency.is_nan() || saliency < MIN_SALIENCY {
-            return Err(ConfigError::Gain {
-                key: "injection.saliency",
-                value: saliency,
-                min: MIN_SALIENCY,
-                max: f64::INFINITY,
-            });
+            return Err(ParamError {
+                key: "injection",
+                reason: ParamReason::Inconsistent(
+                    "a surface motor: it needs L_q/L_d of at least 1.1 (the angle is read from \
+                     the saliency; without it the low-speed d current holds the rotor)",
+                ),
+            }
+            .into());
         }
         let contrast = 1.0 / motor.ld_h - 1.0 / motor.lq_h;
         let v_max = 0.5 * base.voltage_v;

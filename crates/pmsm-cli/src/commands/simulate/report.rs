@@ -134,6 +134,14 @@ pub fn summary(sc: &Scenario, result: &Run) -> String {
             "  initial position: detected {est:.1}°, true {truth:.1}° (error {err:+.1}° electrical)"
         );
     }
+    if let Some(f) = result.injection {
+        let _ = writeln!(
+            s,
+            "  injection: {:.1} V at {:.0} Hz along the estimated d axis, {:.3} A across it at 45° \
+             of error, {:.3} A peak to peak of ripple along d",
+            f.amplitude_v, f.frequency_hz, f.response_a, f.ripple_a
+        );
+    }
     if (result.deadtime_scale - 1.0).abs() > 1e-9 {
         let _ = writeln!(
             s,

@@ -97,6 +97,8 @@ pub struct Run {
     pub deadtime_scale: f64,
     /// The distortion learner's status at the end (`[control] deadtime_learning`).
     pub learner: Option<pmsm_core::DistortionStatus>,
+    /// The high-frequency injection as designed (`[control] injection`).
+    pub injection: Option<pmsm_core::InjectionFigures>,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -140,6 +142,7 @@ pub struct Simulation {
     recorder: super::super::fault_dump::Recorder,
     startup: pmsm_core::StartupMode,
     compare: CompareRegisters,
+    injection: Option<pmsm_core::InjectionFigures>,
 }
 
 impl Simulation {
@@ -148,6 +151,7 @@ impl Simulation {
         let n = (sc.duration_s * setup.sample_hz).round() as usize;
         let recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
         let startup = setup.config.design.startup;
+        let injection = setup.config.injection();
         let compare = CompareRegisters::new(setup.pwm_delay_periods);
         setup.drive.start();
         Self {
@@ -167,6 +171,7 @@ impl Simulation {
             recorder,
             startup,
             compare,
+            injection,
         }
     }
 
@@ -234,6 +239,7 @@ impl Simulation {
                 .task()
                 .learner()
                 .map(pmsm_core::DistortionLearner::status),
+            injection: self.injection,
         }
     }
 }

@@ -210,13 +210,21 @@ fn the_design_is_refused_on_a_surface_motor_and_named() {
     assert!(
         matches!(
             e,
-            ConfigError::Gain {
-                key: "injection.saliency",
+            ConfigError::Param(ParamError {
+                key: "injection",
                 ..
-            }
+            })
         ),
         "{e:?}"
     );
+    let ConfigError::Param(ParamError {
+        reason: ParamReason::Inconsistent(why),
+        ..
+    }) = e
+    else {
+        unreachable!()
+    };
+    assert!(why.contains("L_q/L_d of at least 1.1"), "{why}");
 }
 
 #[test]
