@@ -20,7 +20,6 @@ use indicatif::ProgressBar;
 use pmsm_cli::commands::simulate::run_scenario;
 use pmsm_cli::scenario_file;
 use rayon::prelude::*;
-use std::f64::consts::SQRT_2;
 use std::fmt::Write as _;
 
 /// Motors of the full table (docs/PERFORMANCE.md) and its seed.
@@ -161,25 +160,10 @@ pub(crate) fn manoeuvre_tables(man: &Manoeuvre, theta0_deg: f64) -> String {
 /// `[control]`.
 fn scenario_text(m: &Motor, estimator: &str, man: &Manoeuvre, control: &[String]) -> String {
     format!(
-        "duration_s = {:.6}\n\
-         motor = {{ name = \"family {}\", pole_pairs = {}, rs_ohm = {}, ld_h = {}, lq_h = {}, flux_wb = {}, \
-         j_kg_m2 = {}, b_nm_s = {}, rated_current_a = {}, rated_speed_rpm = {} }}\n\
-         [inverter]\nvdc_v = {}\npwm_hz = {}\ndead_time_s = {}\nmodel = \"switching\"\n\
+        "duration_s = {:.6}\n{}\
          [control]\nobserver = \"{estimator}\"\nstartup = \"auto\"\ndeadtime_compensation = true\n{}{}",
         man.duration_s,
-        m.index,
-        m.pole_pairs,
-        m.rs_ohm,
-        m.ld_h,
-        m.lq_h,
-        m.flux_wb,
-        m.j_kg_m2,
-        m.b_nm_s,
-        m.rated_peak_a / SQRT_2,
-        m.rated_rpm,
-        m.vdc_v,
-        m.pwm_hz,
-        m.dead_time_s,
+        m.hardware_toml(),
         control.iter().map(|c| format!("{c}\n")).collect::<String>(),
         manoeuvre_tables(man, m.theta0_deg),
     )

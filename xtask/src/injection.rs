@@ -15,7 +15,6 @@ use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_cli::scenario_file;
 use pmsm_core::DriveState;
 use rayon::prelude::*;
-use std::f64::consts::SQRT_2;
 
 /// The usage line.
 pub const USAGE: &str = "injection [N] [--seeds A-B] [--off]";
@@ -148,27 +147,12 @@ fn scenario_text(m: &family::Motor, case: Case, on: bool) -> String {
     };
     let load = 0.5 * m.rated_nm;
     format!(
-        "duration_s = 2.5\n\
-         motor = {{ name = \"family {}\", pole_pairs = {}, rs_ohm = {}, ld_h = {}, lq_h = {}, flux_wb = {}, \
-         j_kg_m2 = {}, b_nm_s = {}, rated_current_a = {}, rated_speed_rpm = {} }}\n\
-         [inverter]\nvdc_v = {}\npwm_hz = {}\ndead_time_s = {}\nmodel = \"switching\"\n\
+        "duration_s = 2.5\n{}\
          [control]\ninjection = {on}\n\
          [initial]\ntheta_e_deg = {}\n\
          [speed_ref]\nt_s = {t}\nrpm = {rpm}\n\
          [load]\nt_s = [0.0, 1.0, 1.01]\nnm = [0.0, 0.0, {load}]\n",
-        m.index,
-        m.pole_pairs,
-        m.rs_ohm,
-        m.ld_h,
-        m.lq_h,
-        m.flux_wb,
-        m.j_kg_m2,
-        m.b_nm_s,
-        m.rated_peak_a / SQRT_2,
-        m.rated_rpm,
-        m.vdc_v,
-        m.pwm_hz,
-        m.dead_time_s,
+        m.hardware_toml(),
         m.theta0_deg,
     )
 }

@@ -111,6 +111,28 @@ impl Motor {
         self.j_kg_m2 * self.rated_rpm * TAU / 60.0 / self.rated_nm
     }
 
+    /// The scenario file's `motor` (inline) and `[inverter]` (switching) lines for this motor.
+    pub fn hardware_toml(&self) -> String {
+        format!(
+            "motor = {{ name = \"family {}\", pole_pairs = {}, rs_ohm = {}, ld_h = {}, lq_h = {}, flux_wb = {}, \
+             j_kg_m2 = {}, b_nm_s = {}, rated_current_a = {}, rated_speed_rpm = {} }}\n\
+             [inverter]\nvdc_v = {}\npwm_hz = {}\ndead_time_s = {}\nmodel = \"switching\"\n",
+            self.index,
+            self.pole_pairs,
+            self.rs_ohm,
+            self.ld_h,
+            self.lq_h,
+            self.flux_wb,
+            self.j_kg_m2,
+            self.b_nm_s,
+            self.rated_peak_a / std::f64::consts::SQRT_2,
+            self.rated_rpm,
+            self.vdc_v,
+            self.pwm_hz,
+            self.dead_time_s,
+        )
+    }
+
     /// A short description for the lists.
     pub fn describe(&self) -> String {
         format!(

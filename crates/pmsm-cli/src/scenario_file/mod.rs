@@ -143,12 +143,7 @@ struct RawScenario {
 pub fn read(path: &Path) -> Result<Scenario> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow!("{}: cannot read: {e}", path.display()))?;
-    parse(&text, path, &read_motor_file)
-}
-
-/// Reads the motor file at `path` from the file system.
-fn read_motor_file(path: &Path) -> Result<Motor> {
-    crate::motor_file::read(path)
+    parse(&text, path, &crate::motor_file::read)
 }
 
 /// Parses and validates the text of a scenario file named `path` (in messages, and the
