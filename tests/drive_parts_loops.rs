@@ -748,3 +748,56 @@ fn speed_loop_says_when_it_is_at_its_limit() {
     assert!(fixed.at_limit(out.iq_ref));
     assert!(!fixed.at_limit(pu_from_f64(0.45 * i_max)));
 }
+
+/// `SpeedController::retune` (the drive's slower speed loop while the injection holds the rotor
+/// at low speed): the output carries on without a bump, and from there the loop follows the
+/// f64 IP with the new gains within one LSB.
+#[test]
+fn speed_loop_retune_is_bumpless_and_takes_the_new_gains() {
+    let m = motor_b();
+    let base = base_b();
+    let own = SpeedDesign {
+        decimation: 1,
+        ..SpeedDesign::default_for(&base)
+    };
+    let slower = SpeedDesign {
+        bandwidth_rad_s: own.bandwidth_rad_s / 4.0,
+        ..own
+    };
+    let (a, b) = (
+        SpeedConfig::new(&m, &base, own).unwrap(),
+        SpeedConfig::new(&m, &base, slower).unwrap(),
+    );
+    assert!(b.kp_pu() < 0.5 * a.kp_pu() && b.ki_t_pu() < 0.1 * a.ki_t_pu());
+    let mut rng = SplitMix(0x7e7e);
+    let mut fixed = SpeedController::new(a);
+    let small = |rng: &mut SplitMix| pu_from_f64(rng.uniform(-0.02, 0.02));
+    let (mut w_ref, mut w) = (Pu::ZERO, Pu::ZERO);
+    let mut u = 0.0;
+    for _ in 0..300 {
+        (w_ref, w) = (small(&mut rng), small(&mut rng));
+        let out = fixed.step(w_ref, w);
+        assert!(!out.saturated);
+        u = to_f64(out.iq_ref);
+    }
+    fixed.retune(b, w);
+    // The reference: u_k = u_{k−1} + K_iΩT e_k + (ff_k − ff_{k−1}), ff = −K_pΩ ω̂ to the LSB.
+    let ff = |w: Pu| -(b.kp_pu() * to_f64(w) / LSB).round() * LSB;
+    let mut ff_last = ff(w);
+    let mut worst: f64 = 0.0;
+    for k in 0..300 {
+        if k > 0 {
+            (w_ref, w) = (small(&mut rng), small(&mut rng));
+        }
+        let out = fixed.step(w_ref, w);
+        assert!(!out.saturated);
+        u += b.ki_t_pu() * to_f64(w_ref.saturating_sub(w)) + ff(w) - ff_last;
+        ff_last = ff(w);
+        worst = worst.max((to_f64(out.iq_ref) - u).abs() / LSB);
+        if k == 0 {
+            // The first step after the retune, at the speed it was retuned at: no bump.
+            assert!(worst <= 1.0, "bump of {worst} LSB");
+        }
+    }
+    assert!(worst <= 1.0, "worst {worst} LSB");
+}

@@ -42,9 +42,11 @@ fn locked_rotor_dump_replays_with_observe() {
     // The MRAS's design gains: their estimate follows the locked rotor down and the stall
     // check trips 150 ms later, so the dump holds the stop for the replay (with the low-speed
     // schedule's raised gains the estimate falls so fast that loss_of_lock trips within 1 ms).
+    // Without the injection, which takes the angle below 6 % of rated speed and would fill the
+    // dump's last samples with its square wave, a voltage the replayed NLO does not model.
     let text = text.replace(
         "[control]\n",
-        "[control]\nmras_low_speed_schedule = false\n",
+        "[control]\nmras_low_speed_schedule = false\ninjection = false\n",
     );
     let scenario = dir.join("locked.toml");
     std::fs::write(&scenario, text).unwrap();

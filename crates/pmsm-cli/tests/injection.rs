@@ -1,6 +1,7 @@
-//! The high-frequency injection (`[control] injection = true`, docs/injection.md) on motor B
-//! through `pmsm simulate`'s own code: standstill without the d current, standstill and a
-//! reversal through zero under load, the hand-over to the estimator and back.
+//! The high-frequency injection (docs/injection.md; on by default on a salient motor) on motor
+//! B through `pmsm simulate`'s own code, with the defaults: standstill without the d current,
+//! standstill and a reversal through zero under load, the hand-over to the estimator and back;
+//! a surface motor without it, and why.
 
 use pmsm_cli::commands::simulate::stats::{first_fault, max_angle, rms_angle, window};
 use pmsm_cli::commands::simulate::{Row, run_scenario};
@@ -9,8 +10,8 @@ use pmsm_core::DriveState;
 mod common;
 use common::scenario_text;
 
-/// Motor B on its switching inverter with the injection, from `theta0_deg`, for `duration`
-/// s, with the speed and load tables given.
+/// Motor B on its switching inverter with the drive's defaults (the injection among them),
+/// from `theta0_deg`, for `duration` s, with the speed and load tables given.
 fn motor_b(duration: f64, theta0_deg: f64, speed: &str, load: &str) -> Vec<Row> {
     motor_b_with(duration, theta0_deg, speed, load, "")
 }
@@ -26,7 +27,7 @@ fn motor_b_with(
     let text = format!(
         "duration_s = {duration}\nmotor = \"motor-b.toml\"\n\
          [inverter]\nvdc_v = 540.0\npwm_hz = 14000.0\ndead_time_s = 2e-6\nmodel = \"switching\"\n\
-         [control]\ninjection = true\n{control}\
+         [control]\n{control}\
          [initial]\ntheta_e_deg = {theta0_deg}\n\
          [speed_ref]\n{speed}\n[load]\n{load}\n"
     );
@@ -151,6 +152,37 @@ fn the_estimator_takes_over_above_the_hand_over_and_gives_back_below() {
     let end = window(&rows, 1.8, 2.0);
     let speed = end.iter().map(|r| r.speed_rpm).sum::<f64>() / end.len() as f64;
     assert!((speed - 20.0).abs() < 2.0, "{speed} r/min");
+}
+
+#[test]
+fn the_defaults_inject_on_a_salient_motor_and_say_why_not_on_a_surface_one() {
+    let run = |motor: &str, control: &str| {
+        let text = format!(
+            "duration_s = 0.05\nmotor = {motor}\n[inverter]\nvdc_v = 540.0\npwm_hz = 14000.0\n\
+             [control]\n{control}\n"
+        );
+        run_scenario(&scenario_text("injection-default", &text)).unwrap()
+    };
+    let salient = run("\"motor-b.toml\"", "");
+    let f = salient.injection.expect("motor B injects by default");
+    // 8 ADC steps of 14.3 A full scale over 4096 steps each way: K = 0.056 A.
+    assert!((f.response_a - 0.056).abs() < 0.002, "{}", f.response_a);
+    assert!(salient.injection_declined.is_none());
+    let surface = run(
+        "{ pole_pairs = 3, rs_ohm = 1.6, ld_h = 0.0134, lq_h = 0.0134, flux_wb = 0.288, \
+         j_kg_m2 = 0.04, rated_current_a = 5.0, rated_speed_rpm = 2000 }",
+        // The current-model MRAS holds a surface motor at low speed with a d current (the
+        // back-EMF estimators pass zero speed in their open loop instead).
+        "observer = \"mras-current\"",
+    );
+    assert!(surface.injection.is_none());
+    let (why, id, _, loss) = surface.injection_declined.expect("the reason");
+    assert!(why.to_string().contains("L_q/L_d of at least 1.1"), "{why}");
+    // The low-speed d current holds the rotor instead, and costs 1.5 R i_d² at standstill.
+    assert!(
+        id > 0.0 && (loss - 1.5 * 1.6 * id * id).abs() < 1e-9,
+        "{id} A, {loss} W"
+    );
 }
 
 #[test]

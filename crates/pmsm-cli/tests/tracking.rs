@@ -77,8 +77,11 @@ fn a_heating_motor_is_tracked() {
 #[test]
 fn drives_whose_model_is_off_keep_their_lock_with_tracking() {
     // Cells of `cargo xtask robustness` that lose the lock without tracking and hold it with:
-    // ψ ×1.2 with L ×0.7, and ψ ×0.8 alone; 3.5 s, judged over the last 0.5 s.
-    for cell in [(1.0, 0.7, 1.2), (1.0, 1.0, 0.8)] {
+    // ψ ×0.8 with R ×0.5, and ψ ×0.8 alone; 3.5 s, judged over the last 0.5 s. ψ̂ ends within
+    // 5 % of the plant's (0.305 Wb) where R is right, within 10 % where R̂ is half the plant's:
+    // at one operating point only the sum R(n·î) + |ω|ψ is seen, and the filter splits it by
+    // its priors (docs/tracking.md).
+    for (cell, psi_tol) in [((0.5, 1.0, 0.8), 0.1), ((1.0, 1.0, 0.8), 0.05)] {
         let mut outcome = Vec::new();
         for tracking in [false, true] {
             let run = run_scenario(&motor_b(3.5, "switching", cell, tracking, "")).unwrap();
@@ -95,9 +98,8 @@ fn drives_whose_model_is_off_keep_their_lock_with_tracking() {
             );
             outcome.push(held);
             if tracking {
-                // ψ̂ within 5 % of the plant's (0.305 Wb).
                 let psi = last.model_rs_flux[1];
-                assert!((psi - 0.305).abs() < 0.05 * 0.305, "{cell:?}: {psi}");
+                assert!((psi - 0.305).abs() < psi_tol * 0.305, "{cell:?}: {psi}");
             }
         }
         assert_eq!(outcome, [false, true], "{cell:?}");

@@ -191,7 +191,9 @@ pub struct Control {
     /// drive's, `pmsm_core::DriveDesign::deadtime_learning`).
     pub deadtime_learning: Option<bool>,
     /// High-frequency injection at standstill and low speed on a salient motor
-    /// (`pmsm_core::InjectionDesign`, docs/injection.md; default off).
+    /// (`pmsm_core::InjectionDesign`, docs/injection.md). Default: on where the motor allows it
+    /// (`L_q/L_d` ≥ 1.1), else off with the reason printed; `true` asks for it (a motor it
+    /// cannot serve is then refused), `false` turns it off.
     pub injection: Option<bool>,
 }
 

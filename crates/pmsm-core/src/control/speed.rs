@@ -306,6 +306,15 @@ impl SpeedController {
         self.s = (iq.max(-c.i_max).min(c.i_max).to_bits() as i64) << S_SHIFT;
     }
 
+    /// Takes the gains of `config` without a bump: the output stays, the proportional
+    /// action's memory is the new gain's at the speed `omega` it last saw, the limit at most
+    /// the new `I_max`.
+    pub fn retune(&mut self, config: SpeedConfig, omega: Pu) {
+        self.ff = config.neg_kp.apply(omega);
+        self.limit = self.limit.min(config.i_max);
+        self.config = config;
+    }
+
     /// The reference moved from `from` to `to`: adds `b K_pΩ (to − from)` to the output
     /// ([`SpeedDesign::reference_weight`]; nothing in the IP form), clamped to the limit, as a
     /// step at the reference's change would. The step itself stays the IP's, so the

@@ -40,6 +40,12 @@ pub struct DriveConfig {
     pub(crate) speed: SpeedConfig,
     pub(crate) isr: IsrConfig,
     pub(crate) task: TaskConfig,
+    /// Why the default injection was left out ([`crate::InjectionDesign::fallback`]).
+    #[cfg(feature = "injection")]
+    injection_declined: Option<ConfigError>,
+    /// The injection's design in figures (not the interrupt side's: `f64`).
+    #[cfg(feature = "injection")]
+    injection_figures: Option<crate::observer::InjectionFigures>,
 }
 
 /// What the interrupt side works with: fixed point only, no design data.
@@ -97,6 +103,10 @@ pub(crate) struct TaskConfig {
     pub handover_wait: u32,
     /// [`DriveDesign::zero_crossing_hold`] where the compensation acts.
     pub zero_crossing_hold: bool,
+    /// The speed loop without and with the injection giving the angle, and the speed
+    /// reference below which the second applies.
+    #[cfg(feature = "injection")]
+    pub speed_injecting: Option<(SpeedConfig, SpeedConfig, Pu)>,
 }
 
 /// [`super::design::OpenLoopDesign`] in per unit and samples.
@@ -222,21 +232,24 @@ impl DriveConfig {
             .into());
         }
         #[cfg(feature = "injection")]
-        let injection = match design.injection {
-            Some(d) => Some(crate::observer::InjectionConfig::new(
+        let (injection, injection_figures, injection_declined) = match design.injection.map(|d| {
+            let c = crate::observer::InjectionConfig::new(
                 motor,
                 inverter,
                 &base,
                 d,
                 design.pwm_delay_samples,
-            )?),
-            None => None,
+            );
+            (c, d.fallback)
+        }) {
+            None => (None, None, None),
+            Some((Ok((c, f)), _)) => (Some(c), Some(f), None),
+            Some((Err(e), true)) => {
+                design.injection = None;
+                (None, None, Some(e))
+            }
+            Some((Err(e), false)) => return Err(e),
         };
-        // With the injection, the angle at low speed is observed: no d current holds it.
-        #[cfg(feature = "injection")]
-        if design.injection.is_some() {
-            design.low_speed_id_a = 0.0;
-        }
         if design.speed.decimation != TASK_PERIOD {
             return Err(ParamError {
                 key: "speed.decimation",
@@ -366,6 +379,21 @@ impl DriveConfig {
             _ => IpdConfig::unused(design.ipd),
         };
         let speed = SpeedConfig::new(motor, &base, design.speed)?;
+        #[cfg(feature = "injection")]
+        let speed_injecting = match (&injection, &injection_figures, design.speed.gains) {
+            (Some(c), Some(i), None) => {
+                // No slower than a light rotor's stiff loop (`stiff_bandwidth_rad_s`).
+                let w = (crate::observer::injection::SPEED_SHARE * i.bandwidth_rad_s)
+                    .max(super::design::stiff_bandwidth_rad_s(motor, &base));
+                let d = design.speed;
+                let slower = crate::control::speed::SpeedDesign {
+                    bandwidth_rad_s: d.bandwidth_rad_s.min(w),
+                    ..d
+                };
+                Some((speed, SpeedConfig::new(motor, &base, slower)?, c.on_below))
+            }
+            _ => None,
+        };
         let isr = IsrConfig {
             deadtime,
             ipd_fallback: auto_startup && design.startup == StartupMode::Ipd,
@@ -433,6 +461,8 @@ impl DriveConfig {
             handover_wait: libm::ceil(
                 (ol.handover_speed_rad_s / ol.accel_rad_s2).clamp(0.01, 0.05) / tt,
             ) as u32,
+            #[cfg(feature = "injection")]
+            speed_injecting,
             zero_crossing_hold: design.zero_crossing_hold,
         };
         Ok(Self {
@@ -445,6 +475,10 @@ impl DriveConfig {
             speed,
             isr,
             task,
+            #[cfg(feature = "injection")]
+            injection_declined,
+            #[cfg(feature = "injection")]
+            injection_figures,
         })
     }
 
@@ -472,30 +506,16 @@ impl DriveConfig {
     /// frequency (Hz, half the sampling rate), the current it moves across the axis at 45° of
     /// error (`K`, A) and the peak-to-peak ripple it makes along the d axis (A).
     #[cfg(feature = "injection")]
-    pub fn injection(&self) -> Option<InjectionFigures> {
-        let c = self.isr.injection.as_ref()?;
-        let ts = self.base.sample_s;
-        Some(InjectionFigures {
-            amplitude_v: c.amplitude_v,
-            frequency_hz: 0.5 / ts,
-            response_a: c.response_a,
-            ripple_a: c.amplitude_v * ts / self.motor.ld_h,
-        })
+    pub fn injection(&self) -> Option<crate::observer::InjectionFigures> {
+        self.injection_figures
     }
-}
 
-/// What [`DriveConfig::injection`] reports.
-#[cfg(feature = "injection")]
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InjectionFigures {
-    /// Injected amplitude along the estimated d axis, V.
-    pub amplitude_v: f64,
-    /// The square wave's frequency, Hz.
-    pub frequency_hz: f64,
-    /// The current across the axis at 45° of angle error, A (`K` of docs/injection.md).
-    pub response_a: f64,
-    /// Peak-to-peak current ripple along the d axis, A.
-    pub ripple_a: f64,
+    /// Why the injection the design asked for with [`crate::InjectionDesign::fallback`] was
+    /// left out (a surface motor, a gain out of range); `None` if it is in or was not asked.
+    #[cfg(feature = "injection")]
+    pub fn injection_declined(&self) -> Option<ConfigError> {
+        self.injection_declined
+    }
 }
 
 /// The modulator: the linear one, or overmodulating with pulses shorter than the dead time

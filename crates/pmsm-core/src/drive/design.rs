@@ -234,8 +234,9 @@ pub struct DriveDesign {
     /// High-frequency injection at standstill and low speed on a salient motor
     /// (docs/injection.md): below [`crate::InjectionDesign::on_below`] of rated speed the angle comes
     /// from the saliency instead of the estimator, and the low-speed d current is off. `None`
-    /// (the default) for none. With the feature `injection` only: a firmware that does not
-    /// inject carries neither its code nor its state.
+    /// for none. With the feature `injection` only, and then on by default where the motor
+    /// allows it ([`crate::InjectionDesign::fallback`]): a firmware that does not inject
+    /// carries neither its code nor its state.
     #[cfg(feature = "injection")]
     pub injection: Option<crate::observer::InjectionDesign>,
 }
@@ -264,6 +265,20 @@ pub fn stiff_bandwidth_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
 pub const MAX_PWM_DELAY_SAMPLES: u8 = 2;
 
 impl DriveDesign {
+    /// This design without the high-frequency injection (in a build without the feature
+    /// `injection`, which has none, the design itself): the same drive on every build.
+    #[must_use]
+    pub fn without_injection(self) -> Self {
+        #[cfg(feature = "injection")]
+        let s = Self {
+            injection: None,
+            ..self
+        };
+        #[cfg(not(feature = "injection"))]
+        let s = self;
+        s
+    }
+
     /// Defaults for `motor` on `inverter` with the bases `base`, running `estimator`.
     pub fn default_for(
         motor: &MotorParams,
@@ -360,7 +375,7 @@ impl DriveDesign {
             tracking: estimator == EstimatorKind::MrasCurrent && cfg!(feature = "tracking"),
             deadtime_learning: false,
             #[cfg(feature = "injection")]
-            injection: None,
+            injection: Some(crate::observer::InjectionDesign::default()),
             // The back-EMF estimators' speed loops run at 40 % of the bandwidth and do not
             // oscillate at no load; a d current switched in at their handover disturbed an NLO
             // start of the random family.

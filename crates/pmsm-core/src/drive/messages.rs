@@ -152,6 +152,8 @@ pub(crate) struct Window {
     /// The dead-time compensation's vector of the last sample, αβ.
     pub v_dt: AlphaBeta,
     pub saturated: bool,
+    /// The high-frequency injection gave the angle at the last sample.
+    pub injecting: bool,
     /// The last sample's phase currents and bus voltage.
     pub i_abc: Abc,
     pub vdc: Pu,
@@ -437,7 +439,8 @@ impl Message<WINDOW_WORDS> for Window {
         ] {
             write_pu(w, x);
         }
-        w.bool(self.saturated);
+        // One word for both flags: the interrupt side copies every word of the window.
+        w.u32(u32::from(self.saturated) | u32::from(self.injecting) << 1);
         for p in self.power {
             w.u32(p);
         }
@@ -478,7 +481,8 @@ impl Message<WINDOW_WORDS> for Window {
             c: p(),
         };
         let vdc = p();
-        let saturated = r.bool();
+        let flags = r.u32();
+        let (saturated, injecting) = (flags & 1 != 0, flags & 2 != 0);
         let power = [r.u32(), r.u32(), r.u32()];
         Self {
             epoch,
@@ -498,6 +502,7 @@ impl Message<WINDOW_WORDS> for Window {
             v_est,
             v_dt,
             saturated,
+            injecting,
             i_abc,
             vdc,
             power,

@@ -52,7 +52,7 @@ mod tracking;
 mod zero_crossing;
 
 #[cfg(feature = "injection")]
-pub use config::InjectionFigures;
+pub use crate::observer::InjectionFigures;
 pub use config::{DriveConfig, OVERSPEED_FACTOR};
 pub use design::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveDesign, DriveOptions,

@@ -18,10 +18,11 @@
 //! period to run, and its answer acts as soon as it is there. Its user-facing calls ([`DriveTask::start`], [`DriveTask::set_speed_ref`], …) act at
 //! its next step.
 
+#[cfg(feature = "injection")]
+mod injection;
+mod learn;
 mod start;
 
-#[cfg(feature = "distortion-learner")]
-use super::DistortionDesign;
 use super::TASK_PERIOD;
 use super::calibrate::{Calibration, SCALE_ONE};
 use super::config::{DriveConfig, TaskConfig};
@@ -33,10 +34,8 @@ use super::interface::{DriveState, Fault, SpeedRefLimit};
 use super::messages::{Command, Mode, ModelUpdate, Status, Window};
 use super::monitor::{Monitor, Signals};
 use super::tracking::ModelCoefficients;
-#[cfg(any(feature = "tracking", feature = "distortion-learner"))]
-use super::tracking::TrackerInput;
 #[cfg(feature = "tracking")]
-use super::tracking::{Tracker, TrackerDesign};
+use super::tracking::Tracker;
 use super::zero_crossing::ZeroCrossing;
 use crate::control::flux::FluxController;
 use crate::control::light_load::LightLoad;
@@ -62,6 +61,10 @@ pub struct DriveTask {
     /// alignment (`IsrConfig::ipd_fallback`).
     ipd_fallback: Option<IpdFault>,
     speed: SpeedController,
+    /// Held at low speed on the injection's angle: the slower speed loop
+    /// (`TaskConfig::speed_injecting`), no low-speed d current.
+    #[cfg(feature = "injection")]
+    injection_hold: bool,
     speed_ref: Pu,
     /// [`DriveTask::run_speed_ref`] of `speed_ref`, computed when it is set.
     speed_ref_run: Pu,
@@ -112,13 +115,13 @@ impl DriveTask {
         };
         #[cfg(feature = "tracking")]
         let tracker = if config.design.tracking {
-            tracker_of(config)
+            learn::tracker_of(config)
         } else {
             None
         };
         #[cfg(feature = "distortion-learner")]
         let learner = if config.design.deadtime_learning {
-            learner_of(config)
+            learn::learner_of(config)
         } else {
             None
         };
@@ -133,6 +136,8 @@ impl DriveTask {
         let mras = None;
         Self {
             speed: SpeedController::new(config.speed),
+            #[cfg(feature = "injection")]
+            injection_hold: false,
             flux: {
                 let mut f = FluxController::default();
                 f.reset(&c.flux);
@@ -482,6 +487,8 @@ impl DriveTask {
         {
             return self.fault(f);
         }
+        #[cfg(feature = "injection")]
+        self.speed_gains(w, omega_ref);
         let c = &self.config;
         self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         // The light-load d current follows |i_q*| slowly, the low-speed current fades with the
@@ -495,6 +502,11 @@ impl DriveTask {
         self.low_speed_id =
             c.low_speed
                 .within_limit(self.low_speed_faded, self.iq_ref, self.light_load.level());
+        // Held at low speed on the injection's angle, no d current holds the rotor.
+        #[cfg(feature = "injection")]
+        if self.injection_hold {
+            self.low_speed_id = Pu::ZERO;
+        }
         // MTPA and field weakening, on the modulator's vector and circle of the last sample
         // (docs/field-weakening.md); the speed loop's limit the current circle's `|i_q|` room.
         if c.flux.enabled() {
@@ -521,72 +533,6 @@ impl DriveTask {
                 c.light_load.settled_updates(),
             );
     }
-
-    /// The tracker and the learner on the window's last sample; a model update when they
-    /// moved.
-    #[cfg(any(feature = "tracking", feature = "distortion-learner"))]
-    fn learn(&mut self, w: &Window, running: bool) {
-        #[cfg(feature = "tracking")]
-        let tracker = self.tracker.is_some();
-        #[cfg(not(feature = "tracking"))]
-        let tracker = false;
-        #[cfg(feature = "distortion-learner")]
-        let learner = self.learner.is_some();
-        #[cfg(not(feature = "distortion-learner"))]
-        let learner = false;
-        if !tracker && !learner {
-            return;
-        }
-        let input = TrackerInput {
-            running,
-            theta: w.theta,
-            omega: w.omega,
-            i_dq: w.i_dq,
-            i_ref: w.i_ref,
-            v: w.v_est,
-            saturated: w.saturated,
-        };
-        #[cfg(feature = "tracking")]
-        if let Some(t) = &mut self.tracker
-            && t.update(&input)
-            && let Ok(c) = t.coefficients()
-        {
-            self.set_model(&c);
-        }
-        #[cfg(feature = "distortion-learner")]
-        let scale = self.deadtime_scale();
-        #[cfg(feature = "distortion-learner")]
-        if let Some(l) = &mut self.learner
-            && let Some(s) = l.update(&input, scale)
-        {
-            self.set_deadtime_scale(s);
-        }
-    }
-
-    /// Without the learners' features: nothing to learn.
-    #[cfg(not(any(feature = "tracking", feature = "distortion-learner")))]
-    fn learn(&mut self, _: &Window, _: bool) {}
-}
-
-/// The tracker of `config`'s design (out of line: its `f64` design stays out of
-/// [`DriveTask::new`]'s frame).
-#[cfg(feature = "tracking")]
-#[cold]
-#[inline(never)]
-fn tracker_of(config: &DriveConfig) -> Option<Tracker> {
-    Some(Tracker::build(
-        &config.motor,
-        &config.base,
-        TrackerDesign::for_drive(config),
-    ))
-}
-
-/// The learner of `config`'s design (out of line, as [`tracker_of`]).
-#[cfg(feature = "distortion-learner")]
-#[cold]
-#[inline(never)]
-fn learner_of(config: &DriveConfig) -> Option<DistortionLearner> {
-    DistortionLearner::new(&config.motor, config, DistortionDesign::for_drive(config)).ok()
 }
 
 /// The task's period in samples, as a `u8` (the hold's count).

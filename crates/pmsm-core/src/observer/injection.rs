@@ -64,14 +64,22 @@ pub struct InjectionDesign {
     pub signal_lsb: f64,
     /// Resolution of the current ADC, bits (its full scale is the inverter's).
     pub adc_bits: u32,
-    /// Natural frequency `ω_p` of the tracking loop, rad/s; `None`: `0.02/T_s`, lowered in
-    /// proportion where the bus limits the response below [`InjectionDesign::signal_lsb`]
-    /// (the error's noise is the ADC's steps over the response).
+    /// Natural frequency `ω_p` of the tracking loop, rad/s; `None`: the least that holds the
+    /// angle within 0.1 rad through a rated load step, within `0.01/T_s` and `0.02/T_s`
+    /// (docs/injection.md, "The design"), lowered in proportion where the bus limits the
+    /// response below [`InjectionDesign::signal_lsb`] (the error's noise is the ADC's steps
+    /// over the response).
     pub bandwidth_rad_s: Option<f64>,
     /// The injection takes over below this share of the rated electrical speed…
     pub on_below: f64,
     /// …and hands back to the estimator above this one.
     pub off_above: f64,
+    /// On a motor the injection cannot serve (saliency below [`MIN_SALIENCY`], a gain out of
+    /// range), design the drive without it and say why
+    /// ([`DriveConfig::injection_declined`](crate::DriveConfig::injection_declined)) instead
+    /// of refusing the design. On in the default; a user who asks for the injection by name
+    /// gets the error.
+    pub fallback: bool,
 }
 
 impl Default for InjectionDesign {
@@ -83,9 +91,25 @@ impl Default for InjectionDesign {
             bandwidth_rad_s: None,
             on_below: 0.06,
             off_above: 0.1,
+            fallback: true,
         }
     }
 }
+
+/// Least `ω_p T_s` of the tracking loop: the angle it reads steps by `1/4K` rad per ADC step
+/// of the response, each step a speed transient of `ω_p` times it, so the loop is as slow as
+/// a load step allows (`LOAD_STEP_RAD_S2_PER_W2`; docs/injection.md, "The design").
+pub const BANDWIDTH_TS: f64 = 0.01;
+
+/// The tracking loop's angle error under a step of deceleration `a` peaks at `0.27 a/ω_p²`
+/// (three poles at `−ω_p`): `ω_p²` of at least `a/LOAD_STEP_RAD_S2_PER_W2` keeps it within
+/// 0.1 rad for a step of rated torque, up to twice [`BANDWIDTH_TS`] (light rotors).
+const LOAD_STEP_RAD_S2_PER_W2: f64 = 0.1 / 0.27;
+
+/// Held at low speed on the injection, the speed loop's bandwidth is at most this share of
+/// the tracking loop's `ω_p` (a loop around a sensor runs inside the sensor's bandwidth), and
+/// no less than a light rotor's stiff loop.
+pub const SPEED_SHARE: f64 = 0.25;
 
 /// Least saliency `L_q/L_d` the injection is designed for: below it the response across the
 /// axis is a few ADC steps only at an amplitude that shakes the rotor.
@@ -108,14 +132,26 @@ pub(crate) struct InjectionConfig {
     /// Hysteresis of the hand-over, per unit of `ω_b`.
     pub(crate) on_below: Pu,
     pub(crate) off_above: Pu,
-    /// The design's amplitude (V) and response `K` (A), for reports.
+}
+
+/// The injection as designed ([`crate::DriveConfig::injection`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InjectionFigures {
+    /// Injected amplitude along the estimated d axis, V.
     pub amplitude_v: f64,
+    /// The square wave's frequency, Hz (half the sampling rate).
+    pub frequency_hz: f64,
+    /// The current across the axis at 45° of angle error, A (`K` of docs/injection.md).
     pub response_a: f64,
+    /// Peak-to-peak current ripple along the d axis, A.
+    pub ripple_a: f64,
+    /// The tracking loop's natural frequency `ω_p`, rad/s.
+    pub bandwidth_rad_s: f64,
 }
 
 impl InjectionConfig {
     /// Designs the injection for `motor` on `inverter`, the bases `base` and a PWM update
-    /// delay of `pwm_delay` samples.
+    /// delay of `pwm_delay` samples; with it, its figures.
     ///
     /// Errors: [`ConfigError::Param`] for `injection` on a motor whose `L_q/L_d` is below
     /// [`MIN_SALIENCY`]; [`ConfigError::Gain`] for `injection.amplitude_v`
@@ -127,7 +163,7 @@ impl InjectionConfig {
         base: &PerUnit,
         design: InjectionDesign,
         pwm_delay: u8,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<(Self, InjectionFigures), ConfigError> {
         let ts = base.sample_s;
         let saliency = motor.lq_h / motor.ld_h;
         if saliency.is_nan() || saliency < MIN_SALIENCY {
@@ -135,7 +171,7 @@ impl InjectionConfig {
                 key: "injection",
                 reason: ParamReason::Inconsistent(
                     "a surface motor: it needs L_q/L_d of at least 1.1 (the angle is read from \
-                     the saliency; without it the low-speed d current holds the rotor)",
+                     the saliency)",
                 ),
             }
             .into());
@@ -157,9 +193,14 @@ impl InjectionConfig {
         }
         let w_max = 0.05 / ts;
         let signal = amplitude * ts * contrast / 2.0 / lsb;
+        // A step of rated torque decelerates the rotor by `a` (electrical): `ω_p² ≥ a/LOAD_STEP`
+        // keeps the angle within 0.1 rad through it, between the default and twice it.
+        let a = motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2;
+        let stiff = libm::sqrt(a / LOAD_STEP_RAD_S2_PER_W2)
+            .clamp(BANDWIDTH_TS / ts, 2.0 * BANDWIDTH_TS / ts);
         let wp = design
             .bandwidth_rad_s
-            .unwrap_or(0.02 / ts * (signal / design.signal_lsb).min(1.0));
+            .unwrap_or(stiff * (signal / design.signal_lsb).min(1.0));
         if !(wp > 0.0 && wp <= w_max) {
             return Err(ConfigError::Gain {
                 key: "injection.bandwidth_rad_s",
@@ -194,7 +235,14 @@ impl InjectionConfig {
         let rated = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
             n * motor.p() * core::f64::consts::TAU / 60.0
         });
-        Ok(Self {
+        let figures = InjectionFigures {
+            amplitude_v: amplitude,
+            frequency_hz: 0.5 / ts,
+            response_a: k * base.current_a,
+            ripple_a: amplitude * ts / motor.ld_h,
+            bandwidth_rad_s: wp,
+        };
+        let config = Self {
             v_h: pu_from_f64(amplitude / base.voltage_v),
             k_theta: Coef::new(k_theta).ok_or(gain("injection.bandwidth_rad_s", wp))?,
             k_omega: Coef::new(k_omega).ok_or(gain("injection.bandwidth_rad_s", wp))?,
@@ -208,9 +256,8 @@ impl InjectionConfig {
             omega_max: pu_from_f64(design.off_above * 2.0 * rated / base.omega_e_rad_s),
             on_below: pu_from_f64(design.on_below * rated / base.omega_e_rad_s),
             off_above: pu_from_f64(design.off_above * rated / base.omega_e_rad_s),
-            amplitude_v: amplitude,
-            response_a: k * base.current_a,
-        })
+        };
+        Ok((config, figures))
     }
 }
 

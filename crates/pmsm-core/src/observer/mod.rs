@@ -87,6 +87,8 @@ pub(crate) use direction::Direction;
 pub(crate) use emf::{EmfMeter, EmfMeterConfig};
 pub use injection::InjectionDesign;
 #[cfg(feature = "injection")]
+pub use injection::InjectionFigures;
+#[cfg(feature = "injection")]
 pub(crate) use injection::{Injection, InjectionConfig};
 pub use mras_emf::{MrasEmf, MrasEmfConfig};
 pub use nlo::{Nlo, NloConfig};

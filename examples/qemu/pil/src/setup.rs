@@ -133,7 +133,9 @@ impl Setup {
         // longer; the micro:bit's flash holds the recording beside the core, with the task's
         // learners, at about half).
         design.ipd.off_residual = 0.05;
-        self.config(design)
+        // The estimator's drive on every build: the Cortex-M4's has the injection (its own
+        // case, `isr_injection`), the host's and the Cortex-M0's do not.
+        self.config(design.without_injection())
     }
 
     /// `DriveConfig::new` for this motor and inverter at [`DRIVE_SAMPLE_HZ`]: its one call in

@@ -163,8 +163,12 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     let set = |x: &mut bool, on: Option<bool>| *x = on.unwrap_or(*x);
     set(&mut design.tracking, c.tracking);
     set(&mut design.deadtime_learning, c.deadtime_learning);
+    // Asked for by name, the injection is designed or refused; by default it falls back.
     if let Some(on) = c.injection {
-        design.injection = on.then(pmsm_core::InjectionDesign::default);
+        design.injection = on.then_some(pmsm_core::InjectionDesign {
+            fallback: false,
+            ..Default::default()
+        });
     }
     set(&mut design.flux.mtpa, c.mtpa);
     set(&mut design.flux.field_weakening, c.field_weakening);

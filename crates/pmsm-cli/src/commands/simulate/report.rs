@@ -142,6 +142,17 @@ pub fn summary(sc: &Scenario, result: &Run) -> String {
             f.amplitude_v, f.frequency_hz, f.response_a, f.ripple_a
         );
     }
+    if let Some((why, id, rpm, loss)) = result.injection_declined {
+        let _ = write!(s, "  no injection: {why}");
+        if id > 0.0 {
+            let _ = write!(
+                s,
+                "; below {rpm:.0} r/min a d current of {id:.2} A holds the rotor ({loss:.1} W \
+                 of copper loss at standstill)"
+            );
+        }
+        s.push('\n');
+    }
     if (result.deadtime_scale - 1.0).abs() > 1e-9 {
         let _ = writeln!(
             s,

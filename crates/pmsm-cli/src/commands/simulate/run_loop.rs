@@ -99,6 +99,10 @@ pub struct Run {
     pub learner: Option<pmsm_core::DistortionStatus>,
     /// The high-frequency injection as designed (`[control] injection`).
     pub injection: Option<pmsm_core::InjectionFigures>,
+    /// Why the default injection was left out; the low-speed d current (A) that holds the
+    /// rotor instead, the speed where it has faded out (r/min) and its copper loss at
+    /// standstill (W).
+    pub injection_declined: Option<(pmsm_core::ConfigError, f64, f64, f64)>,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -143,6 +147,7 @@ pub struct Simulation {
     startup: pmsm_core::StartupMode,
     compare: CompareRegisters,
     injection: Option<pmsm_core::InjectionFigures>,
+    injection_declined: Option<(pmsm_core::ConfigError, f64, f64, f64)>,
 }
 
 impl Simulation {
@@ -152,6 +157,12 @@ impl Simulation {
         let recorder = super::super::fault_dump::Recorder::new(setup.base, setup.sample_hz);
         let startup = setup.config.design.startup;
         let injection = setup.config.injection();
+        let d = &setup.config.design;
+        let rpm = 60.0 / (std::f64::consts::TAU * setup.config.motor.p());
+        let injection_declined = setup.config.injection_declined().map(|e| {
+            let (id, r) = (d.low_speed_id_a, setup.config.motor.rs_ohm);
+            (e, id, d.low_speed_fade_rad_s * rpm, 1.5 * r * id * id)
+        });
         let compare = CompareRegisters::new(setup.pwm_delay_periods);
         setup.drive.start();
         Self {
@@ -172,6 +183,7 @@ impl Simulation {
             startup,
             compare,
             injection,
+            injection_declined,
         }
     }
 
@@ -240,6 +252,7 @@ impl Simulation {
                 .learner()
                 .map(pmsm_core::DistortionLearner::status),
             injection: self.injection,
+            injection_declined: self.injection_declined,
         }
     }
 }

@@ -66,6 +66,10 @@ impl DriveIsr {
             v_est: self.v_est,
             v_dt: self.v_dt,
             saturated: t.saturated,
+            #[cfg(feature = "injection")]
+            injecting: self.injecting,
+            #[cfg(not(feature = "injection"))]
+            injecting: false,
             i_abc: input.i_abc,
             vdc: input.vdc,
             power: self.power_sum,

@@ -114,6 +114,7 @@ fn every_message_reads_back_what_was_written() {
                 beta: Pu::from_bits(-13),
             },
             saturated: true,
+            injecting: true,
             i_abc: Abc {
                 a: Pu::from_bits(14),
                 b: Pu::from_bits(15),

@@ -24,8 +24,15 @@ struct Reference {
 }
 
 impl Reference {
-    fn new(c: &InjectionConfig, design_wp: f64, theta: f64, ts: f64, base: &PerUnit) -> Self {
-        let k = c.response_a;
+    fn new(
+        c: &InjectionConfig,
+        f: &InjectionFigures,
+        design_wp: f64,
+        theta: f64,
+        ts: f64,
+        base: &PerUnit,
+    ) -> Self {
+        let k = f.response_a;
         Self {
             theta,
             omega: 0.0,
@@ -130,13 +137,13 @@ impl Plant {
 fn run(offset: f64, omega_e: f64, n: usize) -> (f64, f64, f64) {
     let (m, inv, base) = (motor_b(), inverter_b(), base_b());
     let design = InjectionDesign::default();
-    let c = InjectionConfig::new(&m, &inv, &base, design, 1).unwrap();
+    let (c, f) = InjectionConfig::new(&m, &inv, &base, design, 1).unwrap();
     let ts = base.sample_s;
-    let wp = 0.02 / ts;
+    let wp = f.bandwidth_rad_s;
     let theta0 = 0.7;
     let mut fixed = Injection::default();
     fixed.restart(&c, Angle::from_rad(theta0 + offset), Pu::ZERO);
-    let mut reference = Reference::new(&c, wp, theta0 + offset, ts, &base);
+    let mut reference = Reference::new(&c, &f, wp, theta0 + offset, ts, &base);
     let mut plant = Plant {
         theta: theta0,
         omega: omega_e,
@@ -229,7 +236,7 @@ fn the_design_is_refused_on_a_surface_motor_and_named() {
 
 #[test]
 fn the_amplitude_moves_the_current_by_the_designed_adc_steps() {
-    let c = InjectionConfig::new(
+    let (_, c) = InjectionConfig::new(
         &motor_b(),
         &inverter_b(),
         &base_b(),
