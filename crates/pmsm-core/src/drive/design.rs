@@ -96,7 +96,7 @@ impl OpenLoopDesign {
 }
 
 /// The rated electrical speed, rad/s (the base speed for a motor without a rating).
-fn rated_e_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
+pub(crate) fn rated_e_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
     motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
         n * core::f64::consts::TAU / 60.0 * motor.p()
     })
@@ -233,7 +233,8 @@ pub struct DriveDesign {
     pub deadtime_learning: bool,
     /// High-frequency injection at standstill and low speed on a salient motor
     /// (docs/injection.md): below [`crate::InjectionDesign::on_below`] of rated speed the angle comes
-    /// from the saliency instead of the estimator, and the low-speed d current is off. `None`
+    /// from the saliency instead of the estimator, and while it holds the rotor there the
+    /// low-speed d current is off. `None`
     /// for none. With the feature `injection` only, and then on by default where the motor
     /// allows it ([`crate::InjectionDesign::fallback`]): a firmware that does not inject
     /// carries neither its code nor its state.

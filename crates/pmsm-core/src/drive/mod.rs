@@ -54,6 +54,7 @@ mod zero_crossing;
 #[cfg(feature = "injection")]
 pub use crate::observer::InjectionFigures;
 pub use config::{DriveConfig, OVERSPEED_FACTOR};
+pub(crate) use design::rated_e_rad_s;
 pub use design::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveDesign, DriveOptions,
     MAX_PWM_DELAY_SAMPLES, OpenLoopDesign, Protection, StartupMode,

@@ -193,7 +193,7 @@ impl InjectionConfig {
         }
         let w_max = 0.05 / ts;
         let signal = amplitude * ts * contrast / 2.0 / lsb;
-        // A step of rated torque decelerates the rotor by `a` (electrical): `ω_p² ≥ a/LOAD_STEP`
+        // A step of rated torque decelerates the rotor by `a` (electrical): `ω_p² ≥ a/LOAD_STEP_RAD_S2_PER_W2`
         // keeps the angle within 0.1 rad through it, between the default and twice it.
         let a = motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2;
         let stiff = libm::sqrt(a / LOAD_STEP_RAD_S2_PER_W2)
@@ -232,9 +232,7 @@ impl InjectionConfig {
             min: 0.0,
             max: 32768.0,
         };
-        let rated = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
-            n * motor.p() * core::f64::consts::TAU / 60.0
-        });
+        let rated = crate::drive::rated_e_rad_s(motor, base);
         let figures = InjectionFigures {
             amplitude_v: amplitude,
             frequency_hz: 0.5 / ts,

@@ -389,9 +389,7 @@ pub fn default_observer_gain(
     motor: &crate::params::MotorParams,
     base: &crate::units::PerUnit,
 ) -> f64 {
-    let rated_e = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
-        n * core::f64::consts::TAU / 60.0 * motor.p()
-    });
+    let rated_e = crate::drive::rated_e_rad_s(motor, base);
     // max/min, not clamp: clamp has a panic path (min > max) the firmware would link.
     (3.0 * rated_e).max(100.0).min(0.25 / base.sample_s)
 }

@@ -158,7 +158,7 @@ impl Simulation {
         let startup = setup.config.design.startup;
         let injection = setup.config.injection();
         let d = &setup.config.design;
-        let rpm = 60.0 / (std::f64::consts::TAU * setup.config.motor.p());
+        let rpm = 60.0 / (TAU * setup.config.motor.p());
         let injection_declined = setup.config.injection_declined().map(|e| {
             let (id, r) = (d.low_speed_id_a, setup.config.motor.rs_ohm);
             (e, id, d.low_speed_fade_rad_s * rpm, 1.5 * r * id * id)
