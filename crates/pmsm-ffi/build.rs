@@ -121,6 +121,7 @@ fn main() {
                 "pmsm_estimator_t",
                 "pmsm_startup_t",
                 "pmsm_deadtime_t",
+                "pmsm_injection_t",
                 "pmsm_state_t",
                 "pmsm_fault_t",
                 "pmsm_ipd_fault_t",

@@ -281,6 +281,39 @@ typedef uint32_t pmsm_deadtime_t;
 #endif // __cplusplus
 
 /**
+ * The high-frequency injection at standstill and low speed (`pmsm_config_t.injection`,
+ * docs/injection.md): below 6 % of rated speed the angle comes from the saliency (`L_q/L_d`
+ * of at least 1.1) instead of the back-EMF, so that an interior motor holds full torque at
+ * 0 r/min without the low-speed d current. Cargo feature `injection` (on by default).
+ */
+enum pmsm_injection_t
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * On where the motor allows it, off on a surface motor or in a library built without
+   * the feature; `pmsm_injection_message` says which and why (0).
+   */
+  PMSM_INJECTION_DEFAULT = 0,
+  /**
+   * Off: the low-speed d current holds the rotor at standstill.
+   */
+  PMSM_INJECTION_OFF = 1,
+  /**
+   * On, and a motor it cannot serve (or a library without it) is refused.
+   */
+  PMSM_INJECTION_ON = 2,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum pmsm_injection_t pmsm_injection_t;
+#else
+typedef uint32_t pmsm_injection_t;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * What the drive is doing (`pmsm_state_info_t.state`, `pmsm_output_t.state`). The values
  * are the core's `DriveState::code()`; new states get new values, none is renumbered.
  */
@@ -566,6 +599,11 @@ typedef struct {
    * turns its voltage further and gives its estimator the voltage that acted.
    */
   uint32_t pwm_delay_samples;
+  /**
+   * A `pmsm_injection_t` (0: on where the motor's saliency allows it, in a library built
+   * with the cargo feature `injection`).
+   */
+  uint32_t injection;
 } pmsm_config_t;
 
 /**
@@ -889,6 +927,20 @@ pmsm_status_t pmsm_config_check(const pmsm_config_t *config);
  * bytes.
  */
 size_t pmsm_config_error_message(const pmsm_config_t *config, char *buf, size_t len);
+
+/**
+ * Writes whether the drive `config` builds runs the high-frequency injection at standstill
+ * (`pmsm_config_t.injection`, docs/injection.md), into `buf` as `pmsm_config_error_message`
+ * does: "on: " and its design (amplitude, frequency, the current across the axis at 45° of
+ * error, the ripple along d), or "off: " and why (the key, a surface motor, a library built
+ * without it), or the configuration's error. Returns the length of the whole message. Not for
+ * the ISR (it formats).
+ *
+ * # Safety
+ * `config` is NULL or points to a `pmsm_config_t`; `buf` is NULL or points to `len` writable
+ * bytes.
+ */
+size_t pmsm_injection_message(const pmsm_config_t *config, char *buf, size_t len);
 
 /**
  * Builds a drive from `config` in caller-provided `storage` of `len` bytes (at least

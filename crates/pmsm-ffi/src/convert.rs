@@ -2,7 +2,8 @@
 //! C codes. Safe Rust only.
 
 use crate::types::{
-    pmsm_config_t, pmsm_deadtime_t, pmsm_estimator_t, pmsm_startup_t, pmsm_status_t,
+    pmsm_config_t, pmsm_deadtime_t, pmsm_estimator_t, pmsm_injection_t, pmsm_startup_t,
+    pmsm_status_t,
 };
 use core::f64::consts::TAU;
 use pmsm_core::DeadTimeMode;
@@ -20,9 +21,13 @@ pub(crate) enum Rejected {
         value: u32,
         allowed: &'static str,
     },
-    /// An estimator this library was built without: the field's value and the cargo feature
-    /// of pmsm-ffi that builds it in.
-    NotBuilt { value: u32, feature: &'static str },
+    /// A part this library was built without: the field, its value and the cargo feature of
+    /// pmsm-ffi that builds it in.
+    NotBuilt {
+        field: &'static str,
+        value: u32,
+        feature: &'static str,
+    },
     /// The core rejected it.
     Config(ConfigError),
 }
@@ -50,9 +55,13 @@ impl core::fmt::Display for Rejected {
                 value,
                 allowed,
             } => write!(f, "`{field}` is {value}; it must be in {allowed}"),
-            Rejected::NotBuilt { value, feature } => write!(
+            Rejected::NotBuilt {
+                field,
+                value,
+                feature,
+            } => write!(
                 f,
-                "`estimator` {value} is not built into this library: build pmsm-ffi with the \
+                "`{field}` {value} is not built into this library: build pmsm-ffi with the \
                  cargo feature `{feature}`"
             ),
             Rejected::Config(e) => e.fmt(f),
@@ -158,6 +167,7 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
             value: c.pwm_delay_samples,
             allowed: "0 to 2",
         })?;
+    injection(c.injection, &mut design)?;
     let period = u16::try_from(c.pwm_period_ticks).map_err(|_| Rejected::Range {
         field: "pwm_period_ticks",
         value: c.pwm_period_ticks,
@@ -213,9 +223,72 @@ fn estimator(code: u32, motor: &MotorParams) -> Result<EstimatorKind, Rejected> 
         Ok(kind)
     } else {
         Err(Rejected::NotBuilt {
+            field: "estimator",
             value: code,
             feature,
         })
+    }
+}
+
+/// Sets the design's injection from a `pmsm_injection_t` code.
+fn injection(code: u32, design: &mut DriveDesign) -> Result<(), Rejected> {
+    let on = match code {
+        x if x == pmsm_injection_t::PMSM_INJECTION_DEFAULT as u32 => return Ok(()),
+        x if x == pmsm_injection_t::PMSM_INJECTION_OFF as u32 => false,
+        x if x == pmsm_injection_t::PMSM_INJECTION_ON as u32 => true,
+        x => {
+            return Err(Rejected::Range {
+                field: "injection",
+                value: x,
+                allowed: "0 to 2 (DEFAULT, OFF, ON)",
+            });
+        }
+    };
+    #[cfg(feature = "injection")]
+    {
+        design.injection = on.then_some(pmsm_core::InjectionDesign {
+            fallback: false,
+            ..Default::default()
+        });
+        Ok(())
+    }
+    #[cfg(not(feature = "injection"))]
+    if on {
+        Err(Rejected::NotBuilt {
+            field: "injection",
+            value: code,
+            feature: "injection",
+        })
+    } else {
+        let _ = design;
+        Ok(())
+    }
+}
+
+/// What `pmsm_injection_message` says of a built drive.
+pub(crate) fn write_injection(
+    w: &mut impl core::fmt::Write,
+    config: &DriveConfig,
+) -> core::fmt::Result {
+    #[cfg(feature = "injection")]
+    {
+        if let Some(f) = config.injection() {
+            return write!(
+                w,
+                "on: {:.1} V at {:.0} Hz along the estimated d axis, {:.3} A across it at 45 \
+                 degrees of error, {:.3} A peak to peak of ripple along d",
+                f.amplitude_v, f.frequency_hz, f.response_a, f.ripple_a
+            );
+        }
+        match config.injection_declined() {
+            Some(why) => write!(w, "off: {why}"),
+            None => w.write_str("off: `injection` is 1 (OFF)"),
+        }
+    }
+    #[cfg(not(feature = "injection"))]
+    {
+        let _ = config;
+        w.write_str("off: not built into this library (cargo feature `injection`)")
     }
 }
 

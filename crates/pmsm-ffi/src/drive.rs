@@ -89,6 +89,52 @@ pub unsafe extern "C" fn pmsm_config_error_message(
     len: usize,
 ) -> usize {
     // SAFETY: forwarded contract.
+    unsafe {
+        message(config, buf, len, |w, built| match built {
+            Ok(_) => core::fmt::Write::write_str(w, "ok"),
+            Err(r) => core::fmt::write(w, format_args!("{r}")),
+        })
+    }
+}
+
+/// Writes whether the drive `config` builds runs the high-frequency injection at standstill
+/// (`pmsm_config_t.injection`, docs/injection.md), into `buf` as `pmsm_config_error_message`
+/// does: "on: " and its design (amplitude, frequency, the current across the axis at 45° of
+/// error, the ripple along d), or "off: " and why (the key, a surface motor, a library built
+/// without it), or the configuration's error. Returns the length of the whole message. Not for
+/// the ISR (it formats).
+///
+/// # Safety
+/// `config` is NULL or points to a `pmsm_config_t`; `buf` is NULL or points to `len` writable
+/// bytes.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_injection_message(
+    config: *const pmsm_config_t,
+    buf: *mut c_char,
+    len: usize,
+) -> usize {
+    // SAFETY: forwarded contract.
+    unsafe {
+        message(config, buf, len, |w, built| match built {
+            Err(r) => core::fmt::write(w, format_args!("{r}")),
+            Ok(b) => convert::write_injection(w, &b.config),
+        })
+    }
+}
+
+/// Builds `config` and writes what `write` makes of it into the C buffer `buf` of `len` bytes,
+/// truncated and NUL-terminated; the whole message's length (0 for a NULL or misaligned
+/// `config`).
+///
+/// # Safety
+/// As `pmsm_config_error_message`.
+unsafe fn message(
+    config: *const pmsm_config_t,
+    buf: *mut c_char,
+    len: usize,
+    write: impl FnOnce(&mut CBuf<'_>, Result<convert::Built, convert::Rejected>) -> core::fmt::Result,
+) -> usize {
+    // SAFETY: forwarded contract.
     let Ok(c) = (unsafe { arg(config) }) else {
         return 0;
     };
@@ -104,10 +150,7 @@ pub unsafe extern "C" fn pmsm_config_error_message(
         used: 0,
         needed: 0,
     };
-    let _ = match convert::build(c) {
-        Ok(_) => core::fmt::Write::write_str(&mut w, "ok"),
-        Err(r) => core::fmt::write(&mut w, format_args!("{r}")),
-    };
+    let _ = write(&mut w, convert::build(c));
     if let Some(b) = w.buf.get_mut(w.used) {
         *b = 0;
     }

@@ -89,6 +89,22 @@ pub enum pmsm_deadtime_t {
     PMSM_DEADTIME_BOTH = 4,
 }
 
+/// The high-frequency injection at standstill and low speed (`pmsm_config_t.injection`,
+/// docs/injection.md): below 6 % of rated speed the angle comes from the saliency (`L_q/L_d`
+/// of at least 1.1) instead of the back-EMF, so that an interior motor holds full torque at
+/// 0 r/min without the low-speed d current. Cargo feature `injection` (on by default).
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum pmsm_injection_t {
+    /// On where the motor allows it, off on a surface motor or in a library built without
+    /// the feature; `pmsm_injection_message` says which and why (0).
+    PMSM_INJECTION_DEFAULT = 0,
+    /// Off: the low-speed d current holds the rotor at standstill.
+    PMSM_INJECTION_OFF = 1,
+    /// On, and a motor it cannot serve (or a library without it) is refused.
+    PMSM_INJECTION_ON = 2,
+}
+
 /// What the drive is doing (`pmsm_state_info_t.state`, `pmsm_output_t.state`). The values
 /// are the core's `DriveState::code()`; new states get new values, none is renumbered.
 #[repr(u32)]
@@ -237,6 +253,9 @@ pub struct pmsm_config_t {
     /// (an STM32 TIM1 with OCxPE set), 0 when the duties act over the coming period. The drive
     /// turns its voltage further and gives its estimator the voltage that acted.
     pub pwm_delay_samples: u32,
+    /// A `pmsm_injection_t` (0: on where the motor's saliency allows it, in a library built
+    /// with the cargo feature `injection`).
+    pub injection: u32,
 }
 
 /// The measurements of one control sample, Q8.24 per unit (`2^24` = 1.0 pu).

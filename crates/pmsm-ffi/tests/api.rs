@@ -348,3 +348,68 @@ fn auto_estimator_is_the_motors() {
         "NLO and MRAS drives differ in {differ} steps only"
     );
 }
+
+#[cfg(feature = "injection")]
+fn injection_message(c: &pmsm_config_t) -> String {
+    let mut buf = [0 as core::ffi::c_char; 300];
+    // SAFETY: valid config and buffer.
+    let n = unsafe { pmsm_injection_message(c, buf.as_mut_ptr(), buf.len()) };
+    // SAFETY: NUL-terminated by the function.
+    let s = unsafe { CStr::from_ptr(buf.as_ptr()) }
+        .to_string_lossy()
+        .into_owned();
+    assert_eq!(n, s.len(), "fits in 300 bytes");
+    s
+}
+
+#[test]
+#[cfg(feature = "injection")]
+fn injection_is_on_by_default_where_the_motor_allows_it() {
+    use pmsm_injection_t::*;
+    let rows = scenario::record();
+    let with = |code: pmsm_injection_t| {
+        let mut c = scenario::config_c();
+        c.injection = code as u32;
+        c
+    };
+    // Motor B (L_q/L_d 1.6): on by default, the same drive as asked by name, and another
+    // drive than without it (the recording starts from standstill, in the injection's band).
+    let default = with(PMSM_INJECTION_DEFAULT);
+    let m = injection_message(&default);
+    assert!(m.starts_with("on: ") && m.contains(" Hz"), "{m}");
+    assert_eq!(injection_message(&with(PMSM_INJECTION_ON)), m);
+    let off = injection_message(&with(PMSM_INJECTION_OFF));
+    assert!(
+        off.starts_with("off: ") && off.contains("injection"),
+        "{off}"
+    );
+    let on_out = outputs(&default, &rows);
+    assert_eq!(on_out, outputs(&with(PMSM_INJECTION_ON), &rows));
+    let differ = on_out
+        .iter()
+        .zip(outputs(&with(PMSM_INJECTION_OFF), &rows))
+        .filter(|(a, b)| **a != *b)
+        .count();
+    assert!(differ > 100, "with and without differ in {differ} steps");
+    // A surface motor: off by default, and why; refused when asked by name.
+    let mut surface = default;
+    surface.lq_h = surface.ld_h;
+    let m = injection_message(&surface);
+    assert!(m.starts_with("off: ") && m.contains("surface"), "{m}");
+    // SAFETY: valid config pointers.
+    let check = |c: &pmsm_config_t| unsafe { pmsm_config_check(c) };
+    assert_eq!(check(&surface), pmsm_status_t::PMSM_OK);
+    surface.injection = PMSM_INJECTION_ON as u32;
+    assert_eq!(check(&surface), pmsm_status_t::PMSM_ERR_CONFIG_PARAM);
+    assert!(message(&surface).contains("injection"));
+    // An unknown code.
+    let mut bad = default;
+    bad.injection = 3;
+    assert_eq!(check(&bad), pmsm_status_t::PMSM_ERR_INVALID_ARGUMENT);
+    assert!(
+        message(&bad).contains("`injection` is 3"),
+        "{}",
+        message(&bad)
+    );
+    assert!(injection_message(&bad).contains("`injection` is 3"));
+}
