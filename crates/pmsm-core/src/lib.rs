@@ -136,6 +136,8 @@ pub use identify::{
 };
 pub use ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdOutput, IpdResult};
 pub use num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64};
+#[cfg(feature = "injection")]
+pub use observer::PolarityReport;
 pub use observer::injection::MIN_SALIENCY as INJECTION_MIN_SALIENCY;
 pub use observer::{
     AnyEstimator, Ao, AoConfig, Estimate, Estimator, EstimatorConfig, EstimatorKind,

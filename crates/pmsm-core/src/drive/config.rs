@@ -107,6 +107,9 @@ pub(crate) struct TaskConfig {
     /// reference below which the second applies.
     #[cfg(feature = "injection")]
     pub speed_injecting: Option<(SpeedConfig, SpeedConfig, Pu)>,
+    /// The polarity check when the drive comes back to zero speed on the injection.
+    #[cfg(feature = "injection")]
+    pub polarity: Option<crate::observer::PolarityConfig>,
 }
 
 /// [`super::design::OpenLoopDesign`] in per unit and samples.
@@ -463,6 +466,14 @@ impl DriveConfig {
             ) as u32,
             #[cfg(feature = "injection")]
             speed_injecting,
+            // Half the detection's polarity pulse, within the speed loop's current limit.
+            #[cfg(feature = "injection")]
+            polarity: injection.is_some().then(|| {
+                crate::observer::PolarityConfig::new(
+                    (0.5 * design.ipd.long_current_pu)
+                        .min(design.speed.current_limit_a / base.current_a),
+                )
+            }),
             zero_crossing_hold: design.zero_crossing_hold,
         };
         Ok(Self {

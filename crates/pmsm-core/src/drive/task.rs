@@ -65,6 +65,18 @@ pub struct DriveTask {
     /// (`TaskConfig::speed_injecting`), no low-speed d current.
     #[cfg(feature = "injection")]
     injection_hold: bool,
+    /// The polarity check, whether the drive ran since the last one (or a turn waits for its
+    /// verification), and the speed reference of the last period (a check runs at a steady
+    /// one).
+    #[cfg(feature = "injection")]
+    polarity: crate::observer::PolarityCheck,
+    #[cfg(feature = "injection")]
+    polarity_armed: bool,
+    #[cfg(feature = "injection")]
+    polarity_ref: Pu,
+    /// The d-axis reference a running check started from.
+    #[cfg(feature = "injection")]
+    polarity_from: Pu,
     speed_ref: Pu,
     /// [`DriveTask::run_speed_ref`] of `speed_ref`, computed when it is set.
     speed_ref_run: Pu,
@@ -138,6 +150,14 @@ impl DriveTask {
             speed: SpeedController::new(config.speed),
             #[cfg(feature = "injection")]
             injection_hold: false,
+            #[cfg(feature = "injection")]
+            polarity: crate::observer::PolarityCheck::default(),
+            #[cfg(feature = "injection")]
+            polarity_armed: false,
+            #[cfg(feature = "injection")]
+            polarity_ref: Pu::ZERO,
+            #[cfg(feature = "injection")]
+            polarity_from: Pu::ZERO,
             flux: {
                 let mut f = FluxController::default();
                 f.reset(&c.flux);
@@ -433,8 +453,8 @@ impl DriveTask {
     }
 
     /// The d-axis reference of the closed loop: the more negative of the flux controller's
-    /// and the light-load current's, plus the low-speed current (each within ±64 pu: the sum
-    /// cannot wrap); q the speed loop's.
+    /// and the light-load current's, plus the low-speed current and a polarity check's bias
+    /// (each within ±64 pu: the sum cannot wrap); q the speed loop's.
     fn d_reference(&self) -> Dq {
         let light = self.light_load.id_ref();
         let d = if self.config.flux.enabled() {
@@ -442,6 +462,8 @@ impl DriveTask {
         } else {
             light
         };
+        #[cfg(feature = "injection")]
+        let d = self.polarity_d(d);
         Dq {
             d: Pu::from_bits(d.to_bits() + self.low_speed_id.to_bits()),
             q: self.iq_ref,
@@ -488,7 +510,13 @@ impl DriveTask {
             return self.fault(f);
         }
         #[cfg(feature = "injection")]
-        self.speed_gains(w, omega_ref);
+        {
+            self.speed_gains(w, omega_ref);
+            if self.check_polarity(w, omega_ref) {
+                // The angle turned by a half: the closed loop restarts from it.
+                return;
+            }
+        }
         let c = &self.config;
         self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         // The light-load d current follows |i_q*| slowly, the low-speed current fades with the

@@ -362,5 +362,7 @@ impl Injection {
     }
 }
 
+pub(crate) mod polarity;
+
 #[cfg(test)]
 mod tests;

@@ -89,6 +89,10 @@ pub use injection::InjectionDesign;
 #[cfg(feature = "injection")]
 pub use injection::InjectionFigures;
 #[cfg(feature = "injection")]
+pub use injection::polarity::PolarityReport;
+#[cfg(feature = "injection")]
+pub(crate) use injection::polarity::{PolarityCheck, PolarityConfig};
+#[cfg(feature = "injection")]
 pub(crate) use injection::{Injection, InjectionConfig};
 pub use mras_emf::{MrasEmf, MrasEmfConfig};
 pub use nlo::{Nlo, NloConfig};

@@ -142,6 +142,17 @@ pub fn summary(sc: &Scenario, result: &Run) -> String {
             f.amplitude_v, f.frequency_hz, f.response_a, f.ripple_a
         );
     }
+    let p = result.polarity;
+    if p.checks > 0 {
+        let _ = writeln!(
+            s,
+            "  polarity checked {} time(s) back at zero speed, turned {} time(s); last contrast \
+             {:+.1} % (positive: the angle held was north)",
+            p.checks,
+            p.turns,
+            100.0 * p.contrast.to_num::<f64>()
+        );
+    }
     if let Some((why, id, rpm, loss)) = result.injection_declined {
         let _ = write!(s, "  no injection: {why}");
         if id > 0.0 {

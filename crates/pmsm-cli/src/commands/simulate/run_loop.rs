@@ -103,6 +103,8 @@ pub struct Run {
     /// rotor instead, the speed where it has faded out (r/min) and its copper loss at
     /// standstill (W).
     pub injection_declined: Option<(pmsm_core::ConfigError, f64, f64, f64)>,
+    /// What the injection's polarity checks found when the drive came back to zero speed.
+    pub polarity: pmsm_core::PolarityReport,
 }
 
 /// Builds the drive and the plant of `sc` and runs them.
@@ -253,6 +255,7 @@ impl Simulation {
                 .map(pmsm_core::DistortionLearner::status),
             injection: self.injection,
             injection_declined: self.injection_declined,
+            polarity: drive.task().polarity(),
         }
     }
 }
