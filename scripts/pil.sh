@@ -15,9 +15,11 @@
 #      estimators' in a closed loop; the task step `task`, once per `task_period` samples),
 #      else `PIL FAIL` (exit 1);
 #   5. builds and runs, on both machines, the image of feature `identify` (the
-#      identification's benchmarks and the back-EMF estimators' drives in a closed loop with a
-#      plant, no recording: the micro:bit cannot hold both), which must identify its plant
-#      with `identify_step` within the interrupt's budget.
+#      identification's benchmarks, the back-EMF estimators' drives and motor B's drive with
+#      the high-frequency injection (`isr_injection_loop`, `task_injection_loop`: at 0 and
+#      60 r/min, the injection giving the angle) in a closed loop with a plant, no recording:
+#      the micro:bit cannot hold both), which must identify its plant with `identify_step`
+#      within the interrupt's budget, and keep each drive within its budgets.
 #
 # Needs: rustup target add thumbv7em-none-eabihf thumbv6m-none-eabi;
 #        apt-get install -y qemu-system-arm.
@@ -77,6 +79,8 @@ declare -A isr_budget=(
   [cortex-m4:isr_flux]=1500 [cortex-m0:isr_flux]=4000
   [cortex-m4:isr_saturated]=1500 [cortex-m0:isr_saturated]=4000
   [cortex-m4:isr_injection]=1500
+  [cortex-m4:isr_injection_loop]=1500 [cortex-m0:isr_injection_loop]=4000
+  [cortex-m4:task_injection_loop]=4000 [cortex-m0:task_injection_loop]=12000
   [cortex-m4:isr_nlo]=2600 [cortex-m0:isr_nlo]=6500
   [cortex-m4:isr_ao]=2300 [cortex-m0:isr_ao]=5600
   [cortex-m4:isr_mras_emf]=3100 [cortex-m0:isr_mras_emf]=7700
@@ -170,7 +174,7 @@ if PIL_RECORDING="$recording" cargo build --release -p pmsm-pil-firmware --featu
     worst="$(grep -oE "^PIL $cpu identify_step insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
       sed -E 's/.*insn_max=//')"
     budget=${budgets[$cpu]}
-    for step in isr_nlo isr_ao isr_mras_emf; do
+    for step in isr_nlo isr_ao isr_mras_emf isr_injection_loop task_injection_loop; do
       p="$(check_budget "$run_log" "$cpu" "$step")"
       if [[ -n $p ]]; then
         status=1

@@ -822,6 +822,69 @@ fn bench_estimator_drive(meter: &Meter, estimator: EstimatorKind) -> Option<Side
     Some(sides)
 }
 
+/// The interrupt and task steps of motor B's default drive with the high-frequency injection
+/// (docs/injection.md) in a closed loop with [`IdPlant`] (the image of feature `identify`, which
+/// builds the core with the injection on both machines: the recording's image has no room for
+/// its state on the micro:bit): started at the rotor's angle, held at 0 r/min for a third of
+/// the run and then at 2 % of rated speed (60 r/min), the injection giving the angle throughout;
+/// every step in `Run` measured.
+#[cfg(feature = "identify")]
+#[inline(never)]
+fn bench_injection_drive(meter: &Meter) -> Option<Sides> {
+    let b = Setup::motor_b().ok()?;
+    let mut design = b
+        .drive(EstimatorKind::MrasCurrent, StartupMode::Known(Angle::ZERO))
+        .ok()?
+        .design;
+    design.injection = Some(pmsm_core::InjectionDesign::default());
+    let config = b.config(design).ok()?;
+    config.injection()?;
+    let mut d = Drive::new(config);
+    d.start();
+    let mut plant = IdPlant {
+        motor: MOTOR_B,
+        theta: Angle::ZERO,
+        omega_e_rad_s: 0.0,
+        id_a: 0.0,
+        iq_a: 0.0,
+        vb_v: b.base.voltage_v as f32,
+        ib_a: b.base.current_a as f32,
+    };
+    let t_s = b.base.sample_s as f32;
+    let vdc = b.base.voltage_pu(b.inverter.vdc_v);
+    let creep = b
+        .base
+        .speed_pu(0.02 * 3000.0 * core::f64::consts::TAU / 60.0 * 3.0);
+    let mut sides = Sides::default();
+    let mut i = AlphaBeta::default();
+    for k in 0..CLOSED_LOOP_SAMPLES {
+        d.set_speed_ref(if k < CLOSED_LOOP_SAMPLES / 3 {
+            Pu::ZERO
+        } else {
+            creep
+        });
+        let x = DriveInput {
+            i_abc: inverse_clarke(i),
+            vdc,
+        };
+        let running = d.state() == DriveState::Run;
+        sides.step(meter, &mut d, &x, running);
+        i = plant.step(d.estimator_voltage(), d.state() != DriveState::Idle, t_s);
+    }
+    black_box(&mut d);
+    Some(sides)
+}
+
+/// [`bench_injection_drive`]'s figures: `isr_injection_loop` and `task_injection_loop`.
+#[cfg(feature = "identify")]
+#[inline(never)]
+pub fn run_injection(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
+    if let Some(st) = bench_injection_drive(meter) {
+        report("isr_injection_loop", &st.isr);
+        report("task_injection_loop", &st.task);
+    }
+}
+
 /// The interrupt and task steps of each back-EMF estimator's drive in a closed loop
 /// ([`bench_estimator_drive`]): `isr_nlo`, `isr_ao`, `isr_mras_emf` and their tasks (the
 /// image of feature `identify`: the plant fits beside the core where the recording does not).

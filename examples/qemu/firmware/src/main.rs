@@ -140,29 +140,22 @@ fn run() -> bool {
 /// estimators' drives in a closed loop (no recording, no replay). Succeeds if the
 /// identification identified its plant.
 fn identify(meter: &meter::Meter) -> bool {
-    bench::run_estimators(meter, &mut |name, st| {
+    let mut print = |name: &str, st: &bench::Stats| {
         hprintln!(
             "PIL {CPU} {name} insn_mean={} insn_max={}",
             st.mean(),
             st.max
         );
-    });
+    };
+    bench::run_estimators(meter, &mut print);
+    #[cfg(feature = "identify")]
+    bench::run_injection(meter, &mut print);
     let mut ok = false;
-    let run = bench::run_identify(
-        meter,
-        &mut |name, st| {
-            hprintln!(
-                "PIL {CPU} {name} insn_mean={} insn_max={}",
-                st.mean(),
-                st.max
-            );
-        },
-        &mut |end, samples| {
-            // Relative errors in per mille of R, L_d, L_q, ψ, J when it identified the plant.
-            hprintln!("# {CPU} identify: {end:?} after {samples} samples");
-            ok = matches!(end, bench::IdentifyEnd::Identified(_));
-        },
-    );
+    let run = bench::run_identify(meter, &mut print, &mut |end, samples| {
+        // Relative errors in per mille of R, L_d, L_q, ψ, J when it identified the plant.
+        hprintln!("# {CPU} identify: {end:?} after {samples} samples");
+        ok = matches!(end, bench::IdentifyEnd::Identified(_));
+    });
     if run.is_err() {
         hprintln!("# {CPU}: the identification's configuration failed ({NO_FLOAT_FMT})");
         return false;
