@@ -203,3 +203,48 @@ fn a_surface_motor_is_refused_by_name() {
         "{e}"
     );
 }
+
+/// The saliency `L_q/L_inc,d` a d current `x` (per unit of the rated peak current) gives a
+/// motor whose d axis saturates as the plant's interior motors do (`Saturation::Tanh` at its
+/// default strength), and the least such `x` that reaches the injection's `MIN_SALIENCY`.
+fn saturation_saliency(m: &pmsm_core::MotorParams) -> (f64, f64) {
+    let i_b = core::f64::consts::SQRT_2 * m.rated_current_a.unwrap();
+    // The interior motors' default (it depends on L_d, ψ and the rating, not on L_q).
+    let mut interior = *m;
+    interior.lq_h *= 1.1;
+    let sat = pmsm_plant::Saturation::default_for(&interior);
+    assert!(!sat.is_linear());
+    let saliency = |x: f64| m.lq_h / sat.inductance_d_h(m, x * i_b);
+    let needed = (0..=400)
+        .map(|k| f64::from(k) * 0.01)
+        .find(|&x| saliency(x) >= pmsm_core::INJECTION_MIN_SALIENCY)
+        .unwrap_or(f64::INFINITY);
+    (saliency(1.0), needed)
+}
+
+#[test]
+fn a_surface_motors_saturation_gives_no_usable_saliency_within_its_rated_current() {
+    // Motor A (Solsona, Valla, Muravchik (2000)) and the board's gimbal motor, given the d-axis
+    // saturation of the plant's interior motors: the saliency under a d current reaches the
+    // injection's 1.1 only beyond the current the low-speed hold uses (1 pu).
+    for (name, mut m) in [
+        (
+            "motor A",
+            pmsm_core::MotorParams::new(3, 1.6, 0.0134, 0.0134, 0.288, 0.04256, 0.004256),
+        ),
+        (
+            "GBM2804H-100T",
+            pmsm_core::MotorParams::new(7, 5.3, 0.00106, 0.00106, 0.0056, 6e-6, 1e-6),
+        ),
+    ] {
+        m.rated_current_a = Some(if name == "motor A" { 6.1 } else { 0.8 });
+        let (at_rated, needed) = saturation_saliency(&m);
+        println!(
+            "{name}: L_q/L_inc,d {at_rated:.3} at the rated peak d current; 1.1 from {needed:.2} pu"
+        );
+        assert!(
+            at_rated < 1.1 && needed > 1.5,
+            "{name}: {at_rated} at 1 pu, 1.1 from {needed} pu"
+        );
+    }
+}
