@@ -253,6 +253,32 @@ fn a_light_rotor_stopped_by_its_load_ends_in_a_named_fault_within_50_ms_of_the_s
 }
 
 #[test]
+fn a_gimbal_motor_without_its_load_holds_half_its_rated_torque_on_the_stiff_loop() {
+    // The GM4108H-120T gimbal motor of examples/published/motors.toml (11 pole pairs, 5.55 Ω,
+    // τ_m 3 ms) at half its rated speed, a step of half its rated torque in 1 ms, with the
+    // defaults (the NLO): above twice the handover speed its speed loop runs at 4/τ_b within
+    // 0.01/T_s (`DriveDesign::speed_stiff_rad_s`), which answers before the load turns the
+    // rotor back (at 0.005/T_s it did not: `loss_of_lock` 11 ms after the step).
+    let text = "duration_s = 1.5\n\
+        motor = { name = \"GM4108H-120T\", pole_pairs = 11, rs_ohm = 5.55, ld_h = 0.0014, \
+        lq_h = 0.0014, flux_wb = 0.01856, j_kg_m2 = 1.5e-5, b_nm_s = 4.8e-5, \
+        rated_current_a = 0.35, rated_speed_rpm = 300.0 }\n\
+        [inverter]\nvdc_v = 24.0\npwm_hz = 25000.0\ndead_time_s = 5e-7\nmodel = \"switching\"\n\
+        [speed_ref]\nt_s = [0.0, 0.6, 0.7]\nrpm = [0.0, 0.0, 150.0]\n\
+        [load]\nt_s = [0.0, 1.0, 1.001]\nnm = [0.0, 0.0, 0.0757]\n";
+    let run = run_scenario(&scenario_text("gimbal-load-step", text)).unwrap();
+    assert!(first_fault(&run.rows).is_none());
+    let settled = window(&run.rows, 1.2, 1.5);
+    let worst = settled
+        .iter()
+        .map(|r| (r.speed_rpm - 150.0).abs())
+        .fold(0.0, f64::max);
+    let rms = rms_angle(&settled);
+    println!("after the step: speed within {worst:.2} r/min, angle {rms:.4} rad rms");
+    assert!(worst <= 15.0 && rms <= 0.15, "{worst} r/min, {rms} rad");
+}
+
+#[test]
 fn a_rotor_driven_backwards_ends_in_a_named_fault_within_100_ms() {
     // The 24 V servo at +90 r/min, known start, a load above its rated torque from 0.2 s: for
     // each estimator, the first sample with the true speed below zero after the load, and

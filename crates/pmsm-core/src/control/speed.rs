@@ -178,7 +178,8 @@ impl SpeedConfig {
     /// `speed.damping` outside `[0.3, 10]`, `speed.ki` or `speed.kp` negative or beyond the
     /// per-unit range (`K_iΩ T ω_b/I_b` 0 or in [2⁻²³, 1), `K_pΩ ω_b/I_b` < 2¹⁴; in SI units
     /// in the error); [`ConfigError::Param`] for `speed.current_limit_a` (in `(0, 64 I_b]`)
-    /// or `speed.decimation` (in 1..=1000).
+    /// or `speed.decimation` (in 1..=1000). Out of line: the drive designs several loops.
+    #[inline(never)]
     pub fn new(
         motor: &MotorParams,
         base: &PerUnit,
@@ -234,7 +235,27 @@ impl SpeedConfig {
     }
 }
 
+/// The fixed-point gains and limit of a [`SpeedConfig`], without its design: what the drive
+/// keeps of the other loops it switches to ([`SpeedController::retune_gains`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SpeedGains {
+    ki_t: Coef<KI_FRAC>,
+    neg_kp: Coef<KP_FRAC>,
+    neg_kp_ref: Coef<KP_FRAC>,
+    i_max: Pu,
+}
+
 impl SpeedConfig {
+    /// The fixed-point gains and limit.
+    pub(crate) fn gains(&self) -> SpeedGains {
+        SpeedGains {
+            ki_t: self.ki_t,
+            neg_kp: self.neg_kp,
+            neg_kp_ref: self.neg_kp_ref,
+            i_max: self.i_max,
+        }
+    }
+
     /// `K_pΩ ω_b/I_b` as stored (per unit; for f64 models of the fixed-point loop).
     pub fn kp_pu(&self) -> f64 {
         -self.neg_kp.to_f64()
@@ -268,7 +289,9 @@ pub struct SpeedOutput {
 /// The IP speed controller: configuration and state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpeedController {
-    config: SpeedConfig,
+    /// The gains in use (of the [`SpeedConfig`] it was built or retuned with; its design
+    /// data, `f64`, is not kept).
+    config: SpeedGains,
     /// Output of the last step, Q8.56 (high word: [`Pu`]; see the module docs).
     s: i64,
     /// `ff = −K_pΩ ω̂` of the last step.
@@ -288,13 +311,8 @@ impl SpeedController {
             s: 0,
             ff: Pu::ZERO,
             limit: config.i_max,
-            config,
+            config: config.gains(),
         }
-    }
-
-    /// The configuration.
-    pub fn config(&self) -> &SpeedConfig {
-        &self.config
     }
 
     /// Bumpless restart at speed `omega` with current `iq` flowing: sets the integrator to
@@ -310,9 +328,14 @@ impl SpeedController {
     /// action's memory is the new gain's at the speed `omega` it last saw, the limit at most
     /// the new `I_max`.
     pub fn retune(&mut self, config: SpeedConfig, omega: Pu) {
-        self.ff = config.neg_kp.apply(omega);
-        self.limit = self.limit.min(config.i_max);
-        self.config = config;
+        self.retune_gains(config.gains(), omega);
+    }
+
+    /// [`SpeedController::retune`] to the fixed-point `gains`.
+    pub(crate) fn retune_gains(&mut self, gains: SpeedGains, omega: Pu) {
+        self.ff = gains.neg_kp.apply(omega);
+        self.limit = self.limit.min(gains.i_max);
+        self.config = gains;
     }
 
     /// The reference moved from `from` to `to`: adds `b K_pΩ (to − from)` to the output

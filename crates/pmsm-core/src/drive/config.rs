@@ -8,7 +8,7 @@ use crate::control::current::CurrentConfig;
 use crate::control::flux::FluxConfig;
 use crate::control::light_load::LightLoadConfig;
 use crate::control::low_speed::LowSpeedConfig;
-use crate::control::speed::SpeedConfig;
+use crate::control::speed::{SpeedConfig, SpeedGains};
 use crate::deadtime::{DeadTimeConfig, DeadTimeMode};
 use crate::error::ConfigError;
 use crate::ipd::IpdConfig;
@@ -20,6 +20,8 @@ use crate::observer::{
 use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_range, positive};
 use crate::svpwm::SvpwmConfig;
 use crate::units::PerUnit;
+
+mod schedule;
 
 /// The fixed-point configuration of a drive: the interrupt side's part, the task's, and what
 /// they were computed from.
@@ -106,7 +108,10 @@ pub(crate) struct TaskConfig {
     /// The speed loop without and with the injection giving the angle, and the speed
     /// reference below which the second applies.
     #[cfg(feature = "injection")]
-    pub speed_injecting: Option<(SpeedConfig, SpeedConfig, Pu)>,
+    pub speed_injecting: Option<(SpeedGains, SpeedGains, Pu)>,
+    /// The speed loop and the stiff one of [`DriveDesign::speed_stiff_rad_s`], and the speed
+    /// above which the second applies.
+    pub speed_stiff: Option<(SpeedGains, SpeedGains, Pu)>,
     /// The polarity check when the drive comes back to zero speed on the injection.
     #[cfg(feature = "injection")]
     pub polarity: Option<crate::observer::PolarityConfig>,
@@ -383,20 +388,9 @@ impl DriveConfig {
         };
         let speed = SpeedConfig::new(motor, &base, design.speed)?;
         #[cfg(feature = "injection")]
-        let speed_injecting = match (&injection, &injection_figures, design.speed.gains) {
-            (Some(c), Some(i), None) => {
-                // No slower than a light rotor's stiff loop (`stiff_bandwidth_rad_s`).
-                let w = (crate::observer::injection::SPEED_SHARE * i.bandwidth_rad_s)
-                    .max(super::design::stiff_bandwidth_rad_s(motor, &base));
-                let d = design.speed;
-                let slower = crate::control::speed::SpeedDesign {
-                    bandwidth_rad_s: d.bandwidth_rad_s.min(w),
-                    ..d
-                };
-                Some((speed, SpeedConfig::new(motor, &base, slower)?, c.on_below))
-            }
-            _ => None,
-        };
+        let speed_injecting =
+            schedule::injecting(motor, &base, &design, speed, &injection, &injection_figures)?;
+        let speed_stiff = schedule::stiff(motor, &base, &design, speed, open_loop.handover_speed)?;
         let isr = IsrConfig {
             deadtime,
             ipd_fallback: auto_startup && design.startup == StartupMode::Ipd,
@@ -466,6 +460,7 @@ impl DriveConfig {
             ) as u32,
             #[cfg(feature = "injection")]
             speed_injecting,
+            speed_stiff,
             // Half the detection's polarity pulse, within the speed loop's current limit.
             #[cfg(feature = "injection")]
             polarity: injection.is_some().then(|| {

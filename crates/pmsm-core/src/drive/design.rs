@@ -159,6 +159,12 @@ pub struct DriveDesign {
     pub current: CurrentDesign,
     /// Speed loop.
     pub speed: SpeedDesign,
+    /// Bandwidth of the speed loop above twice the open loop's handover speed, rad/s, where
+    /// the back-EMF estimate is clean enough for a light rotor's stiff loop; `None`: `speed`'s
+    /// everywhere. Default: a light rotor's `4/τ_b` (`τ_b` the time base torque takes it from
+    /// rest to base speed) within `0.01/T_s`, for the NLO and the AO, where it exceeds
+    /// `speed`'s (docs/khlaief2012.md, "stiffer above the handover").
+    pub speed_stiff_rad_s: Option<f64>,
     /// Bandwidth of the first-order filter on the estimated speed that the speed loop uses,
     /// rad/s, its time constant rounded to a power of two of samples (the filter is a shift);
     /// `None` for none. Default: five times the default speed-loop bandwidth for the back-EMF
@@ -255,6 +261,11 @@ pub const SPEED_STIFFNESS: f64 = 4.0;
 /// handover tripped.)
 pub const SPEED_BANDWIDTH_MAX_TS: f64 = 0.005;
 
+/// Largest default `ω_n T_s` of the back-EMF estimators' stiff loop above twice their handover
+/// speed ([`DriveDesign::speed_stiff_rad_s`]): twice [`SPEED_BANDWIDTH_MAX_TS`], where the
+/// estimate's noise no longer rings the loop.
+pub const SPEED_BANDWIDTH_STIFF_TS: f64 = 2.0 * SPEED_BANDWIDTH_MAX_TS;
+
 /// The bandwidth [`SPEED_STIFFNESS`] asks for `motor`, rad/s.
 pub fn stiff_bandwidth_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
     // 4/τ_b, τ_b = J ω_b/(p K_T I_b).
@@ -322,6 +333,13 @@ impl DriveDesign {
                 }
                 d
             },
+            speed_stiff_rad_s: Some(
+                stiff_bandwidth_rad_s(motor, base).min(SPEED_BANDWIDTH_STIFF_TS / base.sample_s),
+            )
+            .filter(|&w| {
+                matches!(estimator, EstimatorKind::Nlo | EstimatorKind::Ao)
+                    && w > SPEED_BANDWIDTH_MAX_TS / base.sample_s
+            }),
             speed_filter_rad_s: Some(
                 if estimator.needs_open_loop_start() {
                     5.0

@@ -21,6 +21,7 @@
 #[cfg(feature = "injection")]
 mod injection;
 mod learn;
+mod speed_schedule;
 mod start;
 
 use super::TASK_PERIOD;
@@ -61,6 +62,8 @@ pub struct DriveTask {
     /// alignment (`IsrConfig::ipd_fallback`).
     ipd_fallback: Option<IpdFault>,
     speed: SpeedController,
+    /// The speed loop runs the stiff gains (`TaskConfig::speed_stiff`).
+    speed_stiff: bool,
     /// Held at low speed on the injection's angle: the slower speed loop
     /// (`TaskConfig::speed_injecting`), no low-speed d current.
     #[cfg(feature = "injection")]
@@ -148,6 +151,7 @@ impl DriveTask {
         let mras = None;
         Self {
             speed: SpeedController::new(config.speed),
+            speed_stiff: false,
             #[cfg(feature = "injection")]
             injection_hold: false,
             #[cfg(feature = "injection")]
@@ -509,9 +513,9 @@ impl DriveTask {
         {
             return self.fault(f);
         }
+        self.speed_schedule(w, omega_ref);
         #[cfg(feature = "injection")]
         {
-            self.speed_gains(w, omega_ref);
             if self.check_polarity(w, omega_ref) {
                 // The angle turned by a half: the closed loop restarts from it.
                 return;

@@ -1,6 +1,6 @@
-//! The task's side of the high-frequency injection (docs/injection.md): the speed loop's gains
-//! while it holds the rotor at low speed (the low-speed d current is off then: `DriveTask::run`),
-//! and the polarity check when the drive comes back to zero speed.
+//! The task's side of the high-frequency injection (docs/injection.md): the polarity check when
+//! the drive comes back to zero speed (the speed loop's gains while the injection holds the
+//! rotor: `speed_schedule`; the low-speed d current is off then: `DriveTask::run`).
 
 use super::DriveTask;
 use crate::angle::Angle;
@@ -12,24 +12,6 @@ use crate::observer::PolarityReport;
 use crate::observer::injection::polarity::Verdict;
 
 impl DriveTask {
-    /// Held at low speed on the injection's angle, the speed loop runs slower
-    /// (`observer::injection::SPEED_SHARE` of the injection's tracking loop): the angle it
-    /// reads steps with the ADC's, and a loop as fast as the tracking passes every step on to
-    /// the rotor. A reference beyond the injection's band (a ramp through it) keeps the loop's
-    /// own gains, so that it does not build the slower loop's lag and release it at the
-    /// hand-over. Bumpless: [`crate::SpeedController::retune`].
-    pub(super) fn speed_gains(&mut self, w: &Window, omega_ref: Pu) {
-        let Some((own, slower, band)) = self.config.speed_injecting else {
-            return;
-        };
-        let slow = w.injecting && omega_ref.saturating_abs() < band;
-        if slow != self.injection_hold {
-            self.injection_hold = slow;
-            let gains = if slow { slower } else { own };
-            self.speed.retune(gains, self.speed_filtered);
-        }
-    }
-
     /// The polarity check (`observer::injection::polarity`) in the closed loop: armed while
     /// the speed reference is beyond the injection's band (the drive runs), run once the
     /// injection holds the rotor at a steady reference within the band (the drive came back to
