@@ -188,5 +188,21 @@ breakdown() {
 }
 breakdown "$out/minimal-mras-current-design.elf" "mras-current init=design"
 
+# 6. No panic path in the library: no function of the minimal firmwares calls into
+# core::panicking (a panic would stop the firmware in the library's handler).
+panics=""
+for elf in "$out"/minimal-*-design.elf "$out"/minimal-*-image.elf; do
+  callers=$(arm-none-eabi-objdump -d -C "$elf" | awk '
+    /^[0-9a-f]+ <.*>:$/ { fn = $0; sub(/^[0-9a-f]+ </, "", fn); sub(/>:$/, "", fn) }
+    /\t(bl|b|b\.w|blx)\t+[0-9a-f]+ <core::panicking::/ { print fn }' |
+    grep -v '^core::panicking::' | sort -u)
+  [ -z "$callers" ] || panics+="$(basename "$elf"): $(printf '%s ' $callers)"$'\n'
+done
+if [ -z "$panics" ]; then
+  say "panic paths in the minimal firmwares: none"
+else
+  printf '%s' "$panics" | sed 's/^/CFFI panic path in /'; fail=1
+fi
+
 if [ $fail = 0 ]; then say PASS; else say FAIL; fi
 exit $fail

@@ -273,11 +273,16 @@ pub(crate) fn write_injection(
     #[cfg(feature = "injection")]
     {
         if let Some(f) = config.injection() {
+            // Whole milli-units: integer formatting (a float's would add some 20 KiB).
+            let milli = |x: f64| (x * 1e3 + 0.5) as i64;
             return write!(
                 w,
-                "on: {:.1} V at {:.0} Hz along the estimated d axis, {:.3} A across it at 45 \
-                 degrees of error, {:.3} A peak to peak of ripple along d",
-                f.amplitude_v, f.frequency_hz, f.response_a, f.ripple_a
+                "on: {} mV at {} Hz along the estimated d axis, {} mA across it at 45 degrees \
+                 of error, {} mA peak to peak of ripple along d",
+                milli(f.amplitude_v),
+                (f.frequency_hz + 0.5) as i64,
+                milli(f.response_a),
+                milli(f.ripple_a)
             );
         }
         match config.injection_declined() {

@@ -99,8 +99,8 @@ pub unsafe extern "C" fn pmsm_config_error_message(
 
 /// Writes whether the drive `config` builds runs the high-frequency injection at standstill
 /// (`pmsm_config_t.injection`, docs/injection.md), into `buf` as `pmsm_config_error_message`
-/// does: "on: " and its design (amplitude, frequency, the current across the axis at 45° of
-/// error, the ripple along d), or "off: " and why (the key, a surface motor, a library built
+/// does: "on: " and its design (amplitude, mV; frequency, Hz; the current across the axis at 45°
+/// of error and the ripple along d, mA), or "off: " and why (the key, a surface motor, a library built
 /// without it), or the configuration's error. Returns the length of the whole message. Not for
 /// the ISR (it formats).
 ///

@@ -196,8 +196,10 @@ impl InjectionConfig {
         // A step of rated torque decelerates the rotor by `a` (electrical): `ω_p² ≥ a/LOAD_STEP_RAD_S2_PER_W2`
         // keeps the angle within 0.1 rad through it, between the default and twice it.
         let a = motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2;
+        // max/min, not `f64::clamp`: its check of the bounds would link float formatting.
         let stiff = libm::sqrt(a / LOAD_STEP_RAD_S2_PER_W2)
-            .clamp(BANDWIDTH_TS / ts, 2.0 * BANDWIDTH_TS / ts);
+            .max(BANDWIDTH_TS / ts)
+            .min(2.0 * BANDWIDTH_TS / ts);
         let wp = design
             .bandwidth_rad_s
             .unwrap_or(stiff * (signal / design.signal_lsb).min(1.0));
@@ -285,7 +287,7 @@ impl Injection {
         *self = Self {
             theta,
             sc: theta.sin_cos(),
-            omega: omega.clamp(-c.omega_max, c.omega_max),
+            omega: omega.max(-c.omega_max).min(c.omega_max),
             v_h: c.v_h,
             settle: c.settle,
             ..Self::default()
@@ -334,7 +336,8 @@ impl Injection {
             .saturating_sub(self.load >> 8)
             .saturating_add(c.k_omega.apply_bits(error));
         self.omega = Pu::from_bits(self.omega.to_bits().saturating_add(change))
-            .clamp(-c.omega_max, c.omega_max);
+            .max(-c.omega_max)
+            .min(c.omega_max);
         let sc_next = next.sin_cos();
         let frame = Frame {
             sc: self.sc,

@@ -823,12 +823,12 @@ fn bench_estimator_drive(meter: &Meter, estimator: EstimatorKind) -> Option<Side
 }
 
 /// The interrupt and task steps of motor B's default drive with the high-frequency injection
-/// (docs/injection.md) in a closed loop with [`IdPlant`] (the image of feature `identify`, which
+/// (docs/injection.md) in a closed loop with [`IdPlant`] (the image of feature `injection`, which
 /// builds the core with the injection on both machines: the recording's image has no room for
 /// its state on the micro:bit): started at the rotor's angle, held at 0 r/min for a third of
 /// the run and then at 2 % of rated speed (60 r/min), the injection giving the angle throughout;
 /// every step in `Run` measured.
-#[cfg(feature = "identify")]
+#[cfg(feature = "injection")]
 #[inline(never)]
 fn bench_injection_drive(meter: &Meter) -> Option<Sides> {
     let b = Setup::motor_b().ok()?;
@@ -876,7 +876,7 @@ fn bench_injection_drive(meter: &Meter) -> Option<Sides> {
 }
 
 /// [`bench_injection_drive`]'s figures: `isr_injection_loop` and `task_injection_loop`.
-#[cfg(feature = "identify")]
+#[cfg(feature = "injection")]
 #[inline(never)]
 pub fn run_injection(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
     if let Some(st) = bench_injection_drive(meter) {
