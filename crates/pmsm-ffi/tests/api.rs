@@ -11,16 +11,23 @@ use core::ffi::{CStr, c_void};
 use core::ptr::{null, null_mut};
 use pmsm_ffi::*;
 
-fn message(c: &pmsm_config_t) -> String {
-    let mut buf = [0 as core::ffi::c_char; 200];
+/// A message function of the C API on `c`, as a string.
+type MessageFn = unsafe extern "C" fn(*const pmsm_config_t, *mut core::ffi::c_char, usize) -> usize;
+
+fn text(f: MessageFn, c: &pmsm_config_t) -> String {
+    let mut buf = [0 as core::ffi::c_char; 300];
     // SAFETY: valid config and buffer.
-    let n = unsafe { pmsm_config_error_message(c, buf.as_mut_ptr(), buf.len()) };
+    let n = unsafe { f(c, buf.as_mut_ptr(), buf.len()) };
     // SAFETY: NUL-terminated by the function.
     let s = unsafe { CStr::from_ptr(buf.as_ptr()) }
         .to_string_lossy()
         .into_owned();
-    assert_eq!(n, s.len(), "fits in 200 bytes");
+    assert_eq!(n, s.len(), "fits in 300 bytes");
     s
+}
+
+fn message(c: &pmsm_config_t) -> String {
+    text(pmsm_config_error_message, c)
 }
 
 /// Replays `rows` through the C ABI; the first differing step, if any.
@@ -351,15 +358,7 @@ fn auto_estimator_is_the_motors() {
 
 #[cfg(feature = "injection")]
 fn injection_message(c: &pmsm_config_t) -> String {
-    let mut buf = [0 as core::ffi::c_char; 300];
-    // SAFETY: valid config and buffer.
-    let n = unsafe { pmsm_injection_message(c, buf.as_mut_ptr(), buf.len()) };
-    // SAFETY: NUL-terminated by the function.
-    let s = unsafe { CStr::from_ptr(buf.as_ptr()) }
-        .to_string_lossy()
-        .into_owned();
-    assert_eq!(n, s.len(), "fits in 300 bytes");
-    s
+    text(pmsm_injection_message, c)
 }
 
 #[test]

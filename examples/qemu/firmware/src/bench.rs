@@ -796,8 +796,30 @@ fn bench_estimator_drive(meter: &Meter, estimator: EstimatorKind) -> Option<Side
     let mut d = Drive::new(config);
     d.set_speed_ref(base.speed_pu(0.5 * 1200.0 * core::f64::consts::TAU / 60.0 * 3.0));
     d.start();
+    let vdc = base.voltage_pu(setup.inverter.vdc_v);
+    Some(closed_loop(
+        meter,
+        &mut d,
+        MOTOR_A_LIGHT,
+        &base,
+        vdc,
+        |_| None,
+    ))
+}
+
+/// [`CLOSED_LOOP_SAMPLES`] steps of the started drive `d` against [`IdPlant`] with `motor`'s
+/// constants at the bases `base` and the bus `vdc`, the rotor at rest at angle 0; `speed_ref(k)`
+/// sets the reference before step `k` when it gives one. Every step in `Run` measured.
+fn closed_loop(
+    meter: &Meter,
+    d: &mut Drive,
+    motor: (f32, f32, f32, f32, f32, f32, f32),
+    base: &PerUnit,
+    vdc: Pu,
+    speed_ref: impl Fn(u32) -> Option<Pu>,
+) -> Sides {
     let mut plant = IdPlant {
-        motor: MOTOR_A_LIGHT,
+        motor,
         theta: Angle::ZERO,
         omega_e_rad_s: 0.0,
         id_a: 0.0,
@@ -806,20 +828,22 @@ fn bench_estimator_drive(meter: &Meter, estimator: EstimatorKind) -> Option<Side
         ib_a: base.current_a as f32,
     };
     let t_s = base.sample_s as f32;
-    let vdc = base.voltage_pu(setup.inverter.vdc_v);
     let mut sides = Sides::default();
     let mut i = AlphaBeta::default();
-    for _ in 0..CLOSED_LOOP_SAMPLES {
+    for k in 0..CLOSED_LOOP_SAMPLES {
+        if let Some(w) = speed_ref(k) {
+            d.set_speed_ref(w);
+        }
         let x = DriveInput {
             i_abc: inverse_clarke(i),
             vdc,
         };
         let running = d.state() == DriveState::Run;
-        sides.step(meter, &mut d, &x, running);
+        sides.step(meter, d, &x, running);
         i = plant.step(d.estimator_voltage(), d.state() != DriveState::Idle, t_s);
     }
-    black_box(&mut d);
-    Some(sides)
+    black_box(d);
+    sides
 }
 
 /// The interrupt and task steps of motor B's default drive with the high-frequency injection
@@ -841,38 +865,17 @@ fn bench_injection_drive(meter: &Meter) -> Option<Sides> {
     config.injection()?;
     let mut d = Drive::new(config);
     d.start();
-    let mut plant = IdPlant {
-        motor: MOTOR_B,
-        theta: Angle::ZERO,
-        omega_e_rad_s: 0.0,
-        id_a: 0.0,
-        iq_a: 0.0,
-        vb_v: b.base.voltage_v as f32,
-        ib_a: b.base.current_a as f32,
-    };
-    let t_s = b.base.sample_s as f32;
     let vdc = b.base.voltage_pu(b.inverter.vdc_v);
     let creep = b
         .base
         .speed_pu(0.02 * 3000.0 * core::f64::consts::TAU / 60.0 * 3.0);
-    let mut sides = Sides::default();
-    let mut i = AlphaBeta::default();
-    for k in 0..CLOSED_LOOP_SAMPLES {
-        d.set_speed_ref(if k < CLOSED_LOOP_SAMPLES / 3 {
+    Some(closed_loop(meter, &mut d, MOTOR_B, &b.base, vdc, |k| {
+        Some(if k < CLOSED_LOOP_SAMPLES / 3 {
             Pu::ZERO
         } else {
             creep
-        });
-        let x = DriveInput {
-            i_abc: inverse_clarke(i),
-            vdc,
-        };
-        let running = d.state() == DriveState::Run;
-        sides.step(meter, &mut d, &x, running);
-        i = plant.step(d.estimator_voltage(), d.state() != DriveState::Idle, t_s);
-    }
-    black_box(&mut d);
-    Some(sides)
+        })
+    }))
 }
 
 /// [`bench_injection_drive`]'s figures: `isr_injection_loop` and `task_injection_loop`.
