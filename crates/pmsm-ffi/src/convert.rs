@@ -246,10 +246,7 @@ fn injection(code: u32, design: &mut DriveDesign) -> Result<(), Rejected> {
     };
     #[cfg(feature = "injection")]
     {
-        design.injection = on.then_some(pmsm_core::InjectionDesign {
-            fallback: false,
-            ..Default::default()
-        });
+        design.injection = on.then(pmsm_core::InjectionDesign::required);
         Ok(())
     }
     #[cfg(not(feature = "injection"))]

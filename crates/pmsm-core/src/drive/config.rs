@@ -105,13 +105,15 @@ pub(crate) struct TaskConfig {
     pub handover_wait: u32,
     /// [`DriveDesign::zero_crossing_hold`] where the compensation acts.
     pub zero_crossing_hold: bool,
-    /// The speed loop without and with the injection giving the angle, and the speed
-    /// reference below which the second applies.
+    /// The speed loop's own gains, which the task's schedule switches back to.
+    pub speed_own: SpeedGains,
+    /// The speed loop while the injection gives the angle, and the speed reference below
+    /// which it applies.
     #[cfg(feature = "injection")]
-    pub speed_injecting: Option<(SpeedGains, SpeedGains, Pu)>,
-    /// The speed loop and the stiff one of [`DriveDesign::speed_stiff_rad_s`], and the speed
-    /// above which the second applies.
-    pub speed_stiff: Option<(SpeedGains, SpeedGains, Pu)>,
+    pub speed_injecting: Option<(SpeedGains, Pu)>,
+    /// The stiff speed loop of [`DriveDesign::speed_stiff_rad_s`], and the speed above which it
+    /// applies.
+    pub speed_stiff: Option<(SpeedGains, Pu)>,
     /// The polarity check when the drive comes back to zero speed on the injection.
     #[cfg(feature = "injection")]
     pub polarity: Option<crate::observer::PolarityConfig>,
@@ -389,8 +391,8 @@ impl DriveConfig {
         let speed = SpeedConfig::new(motor, &base, design.speed)?;
         #[cfg(feature = "injection")]
         let speed_injecting =
-            schedule::injecting(motor, &base, &design, speed, &injection, &injection_figures)?;
-        let speed_stiff = schedule::stiff(motor, &base, &design, speed, open_loop.handover_speed)?;
+            schedule::injecting(motor, &base, &design, &injection, &injection_figures)?;
+        let speed_stiff = schedule::stiff(motor, &base, &design, open_loop.handover_speed)?;
         let isr = IsrConfig {
             deadtime,
             ipd_fallback: auto_startup && design.startup == StartupMode::Ipd,
@@ -458,6 +460,7 @@ impl DriveConfig {
             handover_wait: libm::ceil(
                 (ol.handover_speed_rad_s / ol.accel_rad_s2).clamp(0.01, 0.05) / tt,
             ) as u32,
+            speed_own: speed.gains(),
             #[cfg(feature = "injection")]
             speed_injecting,
             speed_stiff,

@@ -96,6 +96,17 @@ impl Default for InjectionDesign {
     }
 }
 
+impl InjectionDesign {
+    /// The default design asked for by name: a motor it cannot serve is refused (no
+    /// [`InjectionDesign::fallback`]).
+    pub fn required() -> Self {
+        Self {
+            fallback: false,
+            ..Self::default()
+        }
+    }
+}
+
 /// Least `ω_p T_s` of the tracking loop: the angle it reads steps by `1/4K` rad per ADC step
 /// of the response, each step a speed transient of `ω_p` times it, so the loop is as slow as
 /// a load step allows (`LOAD_STEP_RAD_S2_PER_W2`; docs/injection.md, "The design").

@@ -165,10 +165,7 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     set(&mut design.deadtime_learning, c.deadtime_learning);
     // Asked for by name, the injection is designed or refused; by default it falls back.
     if let Some(on) = c.injection {
-        design.injection = on.then_some(pmsm_core::InjectionDesign {
-            fallback: false,
-            ..Default::default()
-        });
+        design.injection = on.then(pmsm_core::InjectionDesign::required);
     }
     set(&mut design.flux.mtpa, c.mtpa);
     set(&mut design.flux.field_weakening, c.field_weakening);

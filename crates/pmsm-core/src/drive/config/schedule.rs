@@ -9,18 +9,17 @@ use crate::num::Pu;
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
-/// The gains of the speed loop `speed` and of the slower one while the injection (its configuration and
-/// figures) holds the rotor, with the reference below which it does; `None` without the
-/// injection or with gains given by hand.
+/// The gains of the slower speed loop while the injection (its configuration and figures)
+/// holds the rotor, with the reference below which it does; `None` without the injection or
+/// with gains given by hand.
 #[cfg(feature = "injection")]
 pub(super) fn injecting(
     motor: &MotorParams,
     base: &PerUnit,
     design: &DriveDesign,
-    speed: SpeedConfig,
     injection: &Option<crate::observer::InjectionConfig>,
     figures: &Option<crate::observer::InjectionFigures>,
-) -> Result<Option<(SpeedGains, SpeedGains, Pu)>, ConfigError> {
+) -> Result<Option<(SpeedGains, Pu)>, ConfigError> {
     let (Some(c), Some(f), None) = (injection, figures, design.speed.gains) else {
         return Ok(None);
     };
@@ -33,23 +32,21 @@ pub(super) fn injecting(
         ..d
     };
     Ok(Some((
-        speed.gains(),
         SpeedConfig::new(motor, base, slower)?.gains(),
         c.on_below,
     )))
 }
 
-/// The gains of the speed loop `speed` and of the stiff one of
-/// [`DriveDesign::speed_stiff_rad_s`], with the speed above which it runs (twice `handover`, per
-/// unit); `None` without it or with gains given by hand.
+/// The gains of the stiff speed loop of [`DriveDesign::speed_stiff_rad_s`], with the speed
+/// above which it runs (twice `handover`, per unit); `None` without it or with gains given by
+/// hand.
 #[inline(never)]
 pub(super) fn stiff(
     motor: &MotorParams,
     base: &PerUnit,
     design: &DriveDesign,
-    speed: SpeedConfig,
     handover: Pu,
-) -> Result<Option<(SpeedGains, SpeedGains, Pu)>, ConfigError> {
+) -> Result<Option<(SpeedGains, Pu)>, ConfigError> {
     let (Some(w), None) = (design.speed_stiff_rad_s, design.speed.gains) else {
         return Ok(None);
     };
@@ -58,7 +55,6 @@ pub(super) fn stiff(
         ..design.speed
     };
     Ok(Some((
-        speed.gains(),
         SpeedConfig::new(motor, base, stiff)?.gains(),
         Pu::from_bits(handover.to_bits().saturating_mul(2)),
     )))

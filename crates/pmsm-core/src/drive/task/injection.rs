@@ -20,8 +20,7 @@ impl DriveTask {
     /// speed. A check that finds the angle a half turn off turns it and arms the
     /// verification; one that contradicts the turn turns back. Whether it turned (`true`).
     pub(super) fn check_polarity(&mut self, w: &Window, omega_ref: Pu) -> bool {
-        let (Some(c), Some((_, _, band))) = (self.config.polarity, self.config.speed_injecting)
-        else {
+        let (Some(c), Some((_, band))) = (self.config.polarity, self.config.speed_injecting) else {
             return false;
         };
         let steady = self.injection_hold

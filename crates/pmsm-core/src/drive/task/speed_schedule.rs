@@ -19,46 +19,36 @@ impl DriveTask {
     pub(super) fn speed_schedule(&mut self, w: &Window, omega_ref: Pu) {
         let c = &self.config;
         #[cfg(feature = "injection")]
-        let hold = c
+        let slower = c
             .speed_injecting
-            .is_some_and(|(_, _, band)| w.injecting && omega_ref.saturating_abs() < band);
+            .filter(|&(_, band)| w.injecting && omega_ref.saturating_abs() < band);
         #[cfg(not(feature = "injection"))]
-        let hold = {
+        let slower: Option<(crate::control::speed::SpeedGains, Pu)> = {
             let _ = (w, omega_ref);
-            false
+            None
         };
-        let stiff = !hold
-            && c.speed_stiff.is_some_and(|(_, _, above)| {
-                let speed = self.speed_filtered.saturating_abs();
-                if self.speed_stiff {
-                    speed >= above.saturating_sub(Pu::from_bits(above.to_bits() >> 2))
-                } else {
-                    speed >= above
-                }
-            });
+        let speed = self.speed_filtered.saturating_abs();
+        let stiff = c.speed_stiff.filter(|&(_, above)| {
+            let from = if self.speed_stiff {
+                above.saturating_sub(Pu::from_bits(above.to_bits() >> 2))
+            } else {
+                above
+            };
+            slower.is_none() && speed >= from
+        });
         #[cfg(feature = "injection")]
-        let changed = hold != self.injection_hold || stiff != self.speed_stiff;
+        let held = self.injection_hold;
         #[cfg(not(feature = "injection"))]
-        let changed = stiff != self.speed_stiff;
-        if !changed {
+        let held = false;
+        if (slower.is_some(), stiff.is_some()) == (held, self.speed_stiff) {
             return;
         }
         #[cfg(feature = "injection")]
-        let slower = c.speed_injecting.filter(|_| hold).map(|(_, s, _)| s);
-        #[cfg(not(feature = "injection"))]
-        let slower = None;
-        let gains = slower
-            .or(c.speed_stiff.filter(|_| stiff).map(|(_, s, _)| s))
-            .or(c.speed_stiff.map(|(own, _, _)| own));
-        #[cfg(feature = "injection")]
-        let gains = gains.or(c.speed_injecting.map(|(own, _, _)| own));
-        #[cfg(feature = "injection")]
         {
-            self.injection_hold = hold;
+            self.injection_hold = slower.is_some();
         }
-        self.speed_stiff = stiff;
-        if let Some(g) = gains {
-            self.speed.retune_gains(g, self.speed_filtered);
-        }
+        self.speed_stiff = stiff.is_some();
+        let gains = slower.or(stiff).map_or(c.speed_own, |(g, _)| g);
+        self.speed.retune_gains(gains, self.speed_filtered);
     }
 }
