@@ -17,7 +17,10 @@
 #   5. builds and runs, on both machines, the image of feature `identify` (the
 #      identification's benchmarks and the back-EMF estimators' drives in a closed loop with a
 #      plant, no recording: the micro:bit cannot hold both), which must identify its plant
-#      with `identify_step` within the interrupt's budget;
+#      with `identify_step` within the interrupt's budget; and runs a low-inductance and a
+#      high-pole-count published motor's drive with its defaults in a closed loop
+#      (`isr_low_l`, `isr_high_p` and their tasks, within the NLO's budgets), each of which
+#      must compute the host's bits (a digest over every step) and hold its rotor;
 #   6. builds and runs, on both machines, the image of feature `injection`: motor B's drive
 #      with the high-frequency injection in a closed loop with a plant (`isr_injection_loop`,
 #      `task_injection_loop`: at 0 and 60 r/min, the injection giving the angle), within the
@@ -86,6 +89,10 @@ declare -A isr_budget=(
   [cortex-m4:isr_nlo]=2600 [cortex-m0:isr_nlo]=6500
   [cortex-m4:isr_ao]=2300 [cortex-m0:isr_ao]=5600
   [cortex-m4:isr_mras_emf]=3100 [cortex-m0:isr_mras_emf]=7700
+  [cortex-m4:isr_low_l]=2600 [cortex-m0:isr_low_l]=6500
+  [cortex-m4:isr_high_p]=2600 [cortex-m0:isr_high_p]=6500
+  [cortex-m4:task_low_l]=4000 [cortex-m0:task_low_l]=12000
+  [cortex-m4:task_high_p]=4000 [cortex-m0:task_high_p]=12000
   [cortex-m4:task]=4000 [cortex-m0:task]=12000
 )
 # The task period (samples), for the mean cost per sample of both steps.
@@ -176,11 +183,21 @@ if PIL_RECORDING="$recording" cargo build --release -p pmsm-pil-firmware --featu
     worst="$(grep -oE "^PIL $cpu identify_step insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
       sed -E 's/.*insn_max=//')"
     budget=${budgets[$cpu]}
-    for step in isr_nlo isr_ao isr_mras_emf; do
+    for step in isr_nlo isr_ao isr_mras_emf isr_low_l task_low_l isr_high_p task_high_p; do
       p="$(check_budget "$run_log" "$cpu" "$step")"
       if [[ -n $p ]]; then
         status=1
         log "$cpu: $p"
+      fi
+    done
+    # The low-inductance and the high-pole-count motor's closed loops: the host's bits, the
+    # rotor held.
+    mapfile -t got < <(grep -E "^PIL $cpu loop_" "$run_log" || true)
+    lines+=("${got[@]}")
+    for name in low_l high_p; do
+      if ! grep -qE "^PIL $cpu loop_$name bit_exact=true held=true$" "$run_log"; then
+        status=1
+        log "$cpu: the closed loop $name is not the host's, or did not hold its rotor"
       fi
     done
     if [[ $rc -ne 0 ]]; then

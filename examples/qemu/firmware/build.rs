@@ -5,7 +5,8 @@
 //! - `thumbv6m-none-eabi` → `microbit` (nRF51, Cortex-M0), reported as `cortex-m0`.
 //!
 //! The recording (written by `pil-record`, see `host/`) is `$PIL_RECORDING`, by default
-//! `examples/qemu/target/pil/recording.bin`.
+//! `examples/qemu/target/pil/recording.bin`; beside it, `loops.bin`, the digests of the host's
+//! closed loops (`pmsm_pil::loops`).
 
 use std::path::PathBuf;
 
@@ -42,4 +43,14 @@ fn main() {
     });
     println!("cargo:rerun-if-changed={}", recording.display());
     println!("cargo:rustc-env=PIL_RECORDING_PATH={}", recording.display());
+    let loops = recording.with_file_name("loops.bin");
+    if !loops.exists() {
+        panic!(
+            "no closed-loop digests at {}: run `cargo run --release -p pmsm-pil-host` in \
+             examples/qemu first (or scripts/pil.sh); it writes them beside the recording",
+            loops.display()
+        );
+    }
+    println!("cargo:rerun-if-changed={}", loops.display());
+    println!("cargo:rustc-env=PIL_LOOPS_PATH={}", loops.display());
 }

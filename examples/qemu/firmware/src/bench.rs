@@ -34,6 +34,7 @@ use pmsm_core::{clarke, inverse_clarke, inverse_park, park};
 use pmsm_core::{mul, mul_unit, pu_from_f64};
 use pmsm_pil::cases::{self, Case, DRIVE_STATE_WORD, DriveCase, STATE_RUN};
 use pmsm_pil::format::{CaseData, Recording};
+use pmsm_pil::loops::{Constants, DqPlant};
 use pmsm_pil::setup::Setup;
 
 use crate::meter::Meter;
@@ -233,11 +234,20 @@ pub struct Sides {
 impl Sides {
     /// One sample of `drive` on `x` (the task too when due), counted when `measure`.
     #[inline(always)]
-    fn step(&mut self, meter: &Meter, drive: &mut Drive, x: &DriveInput, measure: bool) {
+    fn step(
+        &mut self,
+        meter: &Meter,
+        drive: &mut Drive,
+        x: &DriveInput,
+        measure: bool,
+    ) -> DriveOutput {
         let (isr, task, handoff) = drive.parts();
         let mut out = None::<DriveOutput>;
         let n = meter.insn(&mut || out = Some(isr.step(handoff, x)));
-        black_box(out);
+        let out = black_box(out).unwrap_or(DriveOutput {
+            duties: pmsm_core::Duties::HALF,
+            pwm_on: false,
+        });
         if measure {
             add(&mut self.isr, n);
         }
@@ -246,6 +256,18 @@ impl Sides {
             if measure {
                 add(&mut self.task, n);
             }
+        }
+        out
+    }
+
+    /// The closed loop's step: one sample of `drive` on `x`, counted while it runs.
+    pub fn measured<'a>(
+        &'a mut self,
+        meter: &'a Meter,
+    ) -> impl FnMut(&mut Drive, &DriveInput) -> DriveOutput + 'a {
+        move |d, x| {
+            let running = d.state() == DriveState::Run;
+            self.step(meter, d, x, running)
         }
     }
 }
@@ -397,62 +419,8 @@ fn bench_ipd(meter: &Meter, rec: &CaseData<'static>, cfg: IpdConfig) -> Stats {
     )
 }
 
-/// A motor as the plant of the identification and of the estimators' closed loops: the dq
-/// model (linear magnetics, `T_e = 1.5 p (ψ i_q + (L_d − L_q) i_d i_q)`, `J ω̇ = T_e − B ω`)
-/// in `f32`, one Euler step per sample, the rotor angle an [`Angle`] (the core's sine table:
-/// no `f32` trigonometry to link), the commanded voltage applied as is (an ideal inverter).
-/// Unmeasured; it only has to lead the code through its stages as a motor would.
-struct IdPlant {
-    /// `(R Ω, L_d H, L_q H, ψ Wb, J kg m², B N m s, p)`.
-    motor: (f32, f32, f32, f32, f32, f32, f32),
-    theta: Angle,
-    omega_e_rad_s: f32,
-    id_a: f32,
-    iq_a: f32,
-    /// Volts per unit of the identification's voltage, amperes per unit of its current.
-    vb_v: f32,
-    ib_a: f32,
-}
-
-/// Motor B's constants for [`IdPlant`]: `(R Ω, L_d H, L_q H, ψ Wb, J kg m², B N m s, p)`.
-const MOTOR_B: (f32, f32, f32, f32, f32, f32, f32) =
-    (7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011, 3.0);
-
-impl IdPlant {
-    /// One sample of `t_s` under the αβ voltage `v` (per unit); returns the αβ currents (per
-    /// unit) the ADC reads at the end of it.
-    fn step(&mut self, v: AlphaBeta, pwm_on: bool, t_s: f32) -> AlphaBeta {
-        let (r, ld, lq, psi, j, b, p) = self.motor;
-        let q30 = (1u32 << 30) as f32;
-        let q24 = (1u32 << 24) as f32;
-        let sc = self.theta.sin_cos();
-        let (s, c) = (sc.sin.to_bits() as f32 / q30, sc.cos.to_bits() as f32 / q30);
-        if pwm_on {
-            let va = v.alpha.to_bits() as f32 / q24 * self.vb_v;
-            let vb = v.beta.to_bits() as f32 / q24 * self.vb_v;
-            let (vd, vq) = (c * va + s * vb, -s * va + c * vb);
-            let w = self.omega_e_rad_s;
-            let did = (vd - r * self.id_a + w * lq * self.iq_a) / ld;
-            let diq = (vq - r * self.iq_a - w * ld * self.id_a - w * psi) / lq;
-            self.id_a += did * t_s;
-            self.iq_a += diq * t_s;
-        } else {
-            // Outputs off: the currents die out through the diodes within a sample or two.
-            self.id_a = 0.0;
-            self.iq_a = 0.0;
-        }
-        let te = 1.5 * p * (psi * self.iq_a + (ld - lq) * self.id_a * self.iq_a);
-        let w_m = self.omega_e_rad_s / p;
-        self.omega_e_rad_s += (te - b * w_m) / j * t_s * p;
-        let turn = self.omega_e_rad_s * t_s * (4_294_967_296.0 / core::f32::consts::TAU);
-        self.theta = self.theta + Angle(turn as i64 as i32);
-        let (ia, ib) = (c * self.id_a - s * self.iq_a, s * self.id_a + c * self.iq_a);
-        AlphaBeta {
-            alpha: Pu::from_bits((ia / self.ib_a * q24) as i32),
-            beta: Pu::from_bits((ib / self.ib_a * q24) as i32),
-        }
-    }
-}
+/// Motor B's constants for [`DqPlant`].
+const MOTOR_B: Constants = (7.2, 0.025025, 0.04017, 0.305, 0.0036, 0.0011, 3.0);
 
 /// How a benchmarked identification ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -468,20 +436,17 @@ pub enum IdentifyEnd {
 
 /// `Identify::step` (per sample) and `Identify::poll` (the background work; its maximum is
 /// the final fits) over a whole identification of motor B on 540 V at 14 kHz, current limit
-/// √2 × 2.53 A, against [`IdPlant`] (its rotor starting 40° electrical off the α axis).
+/// √2 × 2.53 A, against [`DqPlant`] (its rotor starting 40° electrical off the α axis).
 /// Returns the step's and the poll's figures, how it ended, and the samples it took.
 #[inline(never)]
 fn bench_identify(meter: &Meter, cfg: IdentifyConfig) -> (Stats, Stats, IdentifyEnd, u32) {
     let t_s = cfg.sample_s as f32;
-    let mut plant = IdPlant {
-        motor: MOTOR_B,
-        theta: Angle(0x1C71_C71C),
-        omega_e_rad_s: 0.0,
-        id_a: 0.0,
-        iq_a: 0.0,
-        vb_v: cfg.voltage_base_v as f32,
-        ib_a: cfg.current_base_a as f32,
-    };
+    let mut plant = DqPlant::at_rest(
+        MOTOR_B,
+        Angle(0x1C71_C71C),
+        cfg.voltage_base_v as f32,
+        cfg.current_base_a as f32,
+    );
     // The bus per unit of V_b = V_DC/√3.
     let vdc = Pu::from_bits((1.732_050_8f32 * (1u32 << 24) as f32) as i32);
     let mut id = Identify::new(cfg);
@@ -771,15 +736,14 @@ fn run_drive(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) -> Result<(), 
 /// Motor A of Solsona, Valla, Muravchik (2000) with a rotor a tenth as heavy (the
 /// estimators' closed loops reach their speed within the run): `(R Ω, L_d H, L_q H, ψ Wb,
 /// J kg m², B N m s, p)`, [`pmsm_pil::setup::motor_a`]'s but `J`, `B`.
-const MOTOR_A_LIGHT: (f32, f32, f32, f32, f32, f32, f32) =
-    (1.6, 0.0134, 0.0134, 0.288, 0.004256, 0.0004256, 3.0);
+const MOTOR_A_LIGHT: Constants = (1.6, 0.0134, 0.0134, 0.288, 0.004256, 0.0004256, 3.0);
 
 /// Samples of an estimator's closed loop (0.4 s at 20 kHz).
 const CLOSED_LOOP_SAMPLES: u32 = 8000;
 
 /// The interrupt and task steps of the drive with `estimator` on [`MOTOR_A_LIGHT`] at 20 kHz
 /// (300 V, 1 µs dead time, the PWM update delay of one period), started at the rotor's
-/// angle, the speed reference at half the rated speed, in a closed loop with [`IdPlant`]
+/// angle, the speed reference at half the rated speed, in a closed loop with [`DqPlant`]
 /// (the voltage the drive's estimator is given applied as is): every step in `Run` measured.
 #[inline(never)]
 fn bench_estimator_drive(meter: &Meter, estimator: EstimatorKind) -> Option<Sides> {
@@ -807,47 +771,65 @@ fn bench_estimator_drive(meter: &Meter, estimator: EstimatorKind) -> Option<Side
     ))
 }
 
-/// [`CLOSED_LOOP_SAMPLES`] steps of the started drive `d` against [`IdPlant`] with `motor`'s
+/// [`CLOSED_LOOP_SAMPLES`] steps of the started drive `d` against [`DqPlant`] with `motor`'s
 /// constants at the bases `base` and the bus `vdc`, the rotor at rest at angle 0; `speed_ref(k)`
 /// sets the reference before step `k` when it gives one. Every step in `Run` measured.
 fn closed_loop(
     meter: &Meter,
     d: &mut Drive,
-    motor: (f32, f32, f32, f32, f32, f32, f32),
+    motor: Constants,
     base: &PerUnit,
     vdc: Pu,
     speed_ref: impl Fn(u32) -> Option<Pu>,
 ) -> Sides {
-    let mut plant = IdPlant {
+    let mut plant = DqPlant::at_rest(
         motor,
-        theta: Angle::ZERO,
-        omega_e_rad_s: 0.0,
-        id_a: 0.0,
-        iq_a: 0.0,
-        vb_v: base.voltage_v as f32,
-        ib_a: base.current_a as f32,
-    };
-    let t_s = base.sample_s as f32;
+        Angle::ZERO,
+        base.voltage_v as f32,
+        base.current_a as f32,
+    );
     let mut sides = Sides::default();
-    let mut i = AlphaBeta::default();
-    for k in 0..CLOSED_LOOP_SAMPLES {
-        if let Some(w) = speed_ref(k) {
-            d.set_speed_ref(w);
-        }
-        let x = DriveInput {
-            i_abc: inverse_clarke(i),
-            vdc,
-        };
-        let running = d.state() == DriveState::Run;
-        sides.step(meter, d, &x, running);
-        i = plant.step(d.estimator_voltage(), d.state() != DriveState::Idle, t_s);
-    }
+    pmsm_pil::loops::closed_loop(
+        d,
+        &mut plant,
+        vdc,
+        base.sample_s as f32,
+        CLOSED_LOOP_SAMPLES,
+        &speed_ref,
+        &mut sides.measured(meter),
+    );
     black_box(d);
     sides
 }
 
+/// The drive's two steps on the motors of [`pmsm_pil::loops::LOOP_MOTORS`] (a low-inductance
+/// and a high-pole-count motor, each with its own defaults) in a closed loop with [`DqPlant`]
+/// (the image of feature `identify`): passes `isr_<name>` and `task_<name>` to `report`, then
+/// the loop's end and whether its digest is the host's (`host`: the digest file) to `ended`.
+#[inline(never)]
+pub fn run_motors(
+    meter: &Meter,
+    host: &[u8],
+    report: &mut dyn FnMut(&str, &str, &Stats),
+    ended: &mut dyn FnMut(&pmsm_pil::loops::LoopMotor, &pmsm_pil::loops::LoopEnd, bool),
+) -> Result<(), ConfigError> {
+    for (k, make) in pmsm_pil::loops::LOOP_MOTORS.iter().enumerate() {
+        let m = make();
+        let mut sides = Sides::default();
+        let end = pmsm_pil::loops::run(&m, &mut sides.measured(meter))?;
+        report("isr", m.name, &sides.isr);
+        report("task", m.name, &sides.task);
+        ended(
+            &m,
+            &end,
+            pmsm_pil::loops::digest_at(host, k) == Some(end.digest),
+        );
+    }
+    Ok(())
+}
+
 /// The interrupt and task steps of motor B's default drive with the high-frequency injection
-/// (docs/injection.md) in a closed loop with [`IdPlant`] (the image of feature `injection`, which
+/// (docs/injection.md) in a closed loop with [`DqPlant`] (the image of feature `injection`, which
 /// builds the core with the injection on both machines: the recording's image has no room for
 /// its state on the micro:bit): started at the rotor's angle, held at 0 r/min for a third of
 /// the run and then at 2 % of rated speed (60 r/min), the injection giving the angle throughout;

@@ -151,6 +151,9 @@ fn identify(meter: &meter::Meter) -> bool {
         );
     };
     bench::run_estimators(meter, &mut print);
+    if !motors(meter) {
+        return false;
+    }
 
     let mut ok = false;
     let run = bench::run_identify(meter, &mut print, &mut |end, samples| {
@@ -160,6 +163,46 @@ fn identify(meter: &meter::Meter) -> bool {
     });
     if run.is_err() {
         hprintln!("# {CPU}: the identification's configuration failed ({NO_FLOAT_FMT})");
+        return false;
+    }
+    ok
+}
+
+/// The digests of the host's closed loops (`pmsm_pil::loops::digest_file`).
+static HOST_LOOPS: &[u8] = include_bytes!(env!("PIL_LOOPS_PATH"));
+
+/// The closed loops of the low-inductance and the high-pole-count motor (in the image of
+/// feature `identify`): their two steps measured, `PIL <cpu> loop_<name> bit_exact=… held=…`.
+/// Succeeds if each loop computed the host's bits and held its rotor.
+fn motors(meter: &meter::Meter) -> bool {
+    let mut ok = true;
+    let run = bench::run_motors(
+        meter,
+        HOST_LOOPS,
+        &mut |side, name, st| {
+            hprintln!(
+                "PIL {CPU} {side}_{name} insn_mean={} insn_max={}",
+                st.mean(),
+                st.max
+            );
+        },
+        &mut |m, end, exact| {
+            let held = m.held(end);
+            ok &= exact && held;
+            // The angle error in milliradians, the speed in per mille of the reference.
+            let mrad = (end.error.0 as i64 * 6_283_185 / (1i64 << 32) / 1000) as i32;
+            hprintln!(
+                "# {CPU} loop {}: state {}, angle off by {} mrad, digest {:#010x}",
+                m.name,
+                end.state,
+                mrad,
+                end.digest
+            );
+            hprintln!("PIL {CPU} loop_{} bit_exact={exact} held={held}", m.name);
+        },
+    );
+    if run.is_err() {
+        hprintln!("# {CPU}: a closed loop's configuration failed ({NO_FLOAT_FMT})");
         return false;
     }
     ok

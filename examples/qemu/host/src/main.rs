@@ -18,6 +18,7 @@ use pmsm_core::{Abc, AlphaBeta, Angle, PerUnit, Pu};
 use pmsm_pil::cases::Case;
 use pmsm_pil::cases::{self, CASES, Io, Shape};
 use pmsm_pil::format;
+use pmsm_pil::loops;
 use pmsm_pil::setup::{DRIVE_SAMPLE_HZ, SAMPLE_HZ, Setup};
 
 /// Default number of steps of the estimator cases (5 ms at 20 kHz, from the first sample of
@@ -99,26 +100,58 @@ fn run() -> Result<(), String> {
     }
     // The firmware's parser must accept what we write.
     format::Recording::parse(&bytes).map_err(|e| format!("own recording: {e}"))?;
-    // An unchanged recording keeps its time stamp, so the firmware is not rebuilt.
-    if std::fs::read(&output).is_ok_and(|old| old == bytes) {
-        eprintln!(
-            "pil-record: {} unchanged ({} bytes)",
-            output.display(),
-            bytes.len()
-        );
+    write_unchanged(&output, &bytes, &format!("{} cases", CASES.len()))?;
+    write_unchanged(
+        &output.with_file_name("loops.bin"),
+        &closed_loops()?,
+        &format!("{} closed loops", loops::LOOP_MOTORS.len()),
+    )
+}
+
+/// Writes `bytes` to `path`, unless it holds them already: an unchanged file keeps its time
+/// stamp, so the firmware is not rebuilt.
+fn write_unchanged(path: &Path, bytes: &[u8], what: &str) -> Result<(), String> {
+    if std::fs::read(path).is_ok_and(|old| old == bytes) {
+        eprintln!("pil-record: {} unchanged ({what})", path.display());
         return Ok(());
     }
-    if let Some(dir) = output.parent() {
+    if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
-    std::fs::write(&output, &bytes).map_err(|e| format!("{}: {e}", output.display()))?;
+    std::fs::write(path, bytes).map_err(|e| format!("{}: {e}", path.display()))?;
     eprintln!(
-        "pil-record: wrote {} ({} bytes, {} cases)",
-        output.display(),
-        bytes.len(),
-        CASES.len()
+        "pil-record: wrote {} ({} bytes, {what})",
+        path.display(),
+        bytes.len()
     );
     Ok(())
+}
+
+/// Runs the closed loops of `pmsm_pil::loops` on the host: their digests, for the firmware to
+/// compare its own with. Each loop must hold its rotor.
+fn closed_loops() -> Result<Vec<u8>, String> {
+    let mut digests = Vec::new();
+    for make in loops::LOOP_MOTORS {
+        let m = make();
+        let end = loops::run(&m, &mut |d, x| d.step(x))
+            .map_err(|e| format!("closed loop {}: {e}", m.name))?;
+        let angle = end.error.to_rad();
+        eprintln!(
+            "pil-record: loop {:<7} {} steps, {:?}, state {}, angle off by {angle:+.4} rad, \
+             rotor at {:.1} rad/s, digest {:#010x}",
+            m.name,
+            loops::LOOP_SAMPLES,
+            pmsm_core::EstimatorKind::for_motor(&m.motor),
+            end.state,
+            end.omega_e_rad_s,
+            end.digest
+        );
+        if !m.held(&end) {
+            return Err(format!("closed loop {} does not hold its rotor", m.name));
+        }
+        digests.push(end.digest);
+    }
+    Ok(loops::digest_file(&digests).to_vec())
 }
 
 /// The scenario of a case: where its inputs come from.
