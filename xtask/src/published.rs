@@ -441,7 +441,8 @@ pub fn section(file: &str, control: &[String]) -> Result<(String, Vec<String>)> 
     if silent > 0 {
         missed.push(format!("{silent} silent runs"));
     }
-    crate::family::keep_failed(&dir, missed.is_empty());
+    // Every scenario that did not end holding is kept (a refusal is not a hold: kept too).
+    crate::family::keep_failed(&dir, results.iter().all(|r| r.outcome == Outcome::Holds));
     Ok((s, missed))
 }
 

@@ -141,7 +141,7 @@ pub fn widened_section(n: usize, seeds: (u64, u64)) -> Result<(String, Vec<Strin
     if silent > 0 {
         missed.push(format!("{silent} silent runs"));
     }
-    crate::family::keep_failed(&dir, missed.is_empty());
+    crate::family::keep_failed(&dir, failed.is_empty());
     Ok((s, missed))
 }
 
