@@ -287,16 +287,19 @@ fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
     // until the speed loop drives it through zero, and the drive trips on the reversal's
     // handover or (since the speed loop's bandwidth follows a light rotor, `SPEED_STIFFNESS`)
     // turns back through the open loop, half a turn off for 15 ms; handed over where it is
-    // damped it swings half as far (128 and 70 r/min; the ramp starts from 105.5 and 167
-    // r/min).
-    let tenth = run("handover_speed_rpm = 105.5\n");
+    // damped it swings less (112 r/min before the trip at 0.57 s, against 86; the ramp starts
+    // from 105.5 and 167 r/min).
+    // Both without the load observer, which takes part of each swing out (103 and 72 r/min
+    // with it): the handover speed alone.
+    let damped = run("load_observer = false\n");
+    let tenth = run("handover_speed_rpm = 105.5\nload_observer = false\n");
     let fault = first_fault(&tenth).map(|r| r.t_s);
     println!(
         "at a tenth: fault {fault:?}, swing {:.0} r/min; damped: swing {:.0} r/min",
         swing(&tenth),
-        swing(&rows)
+        swing(&damped)
     );
-    assert!(fault.is_some_and(|t| t < 0.7) || swing(&tenth) > 1.5 * swing(&rows));
+    assert!(fault.is_some_and(|t| t < 0.7) || swing(&tenth) > 1.5 * swing(&damped));
 }
 
 /// Motor B with linear iron: the pulses find the axis but not the magnet's polarity (no

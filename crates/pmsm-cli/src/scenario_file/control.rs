@@ -195,6 +195,11 @@ pub struct Control {
     /// (`L_q/L_d` ≥ 1.1), else off with the reason printed; `true` asks for it (a motor it
     /// cannot serve is then refused), `false` turns it off.
     pub injection: Option<bool>,
+    /// The load observer that feeds the load's current forward into the speed loop
+    /// (`pmsm_core::DriveDesign::load_observer_rad_s`, docs/khlaief2012.md §7). Default: the
+    /// drive's, on with the back-EMF estimators where the motor's resistive drop is below a
+    /// quarter of its EMF; `false` turns it off.
+    pub load_observer: Option<bool>,
 }
 
 impl Control {

@@ -44,6 +44,7 @@
 //! overmodulation = true            # optional: beyond the circle up to six-step
 //! injection = true                 # optional: high-frequency injection at standstill and
 //!                                  # low speed on a salient motor (docs/injection.md)
+//! load_observer = false            # optional: no load observer (docs/khlaief2012.md §7)
 //!
 //! [initial]
 //! theta_e_deg = 40.0

@@ -1,6 +1,6 @@
 //! The control loops of the drive of Khlaief, Boussak, Gossa (2012) (docs/khlaief2012.md §6–7): a fixed-point PI with
 //! anti-windup ([`pi`]), the dq current controllers ([`current`]) and the IP speed controller
-//! ([`speed`]).
+//! ([`speed`]) with the load observer that feeds it forward ([`load_observer`]).
 //!
 //! All of them follow the crate's split: a `Config::new` that designs and checks every
 //! coefficient in `f64` once, and an integer-only `step` that saturates instead of wrapping
@@ -14,6 +14,7 @@
 pub(crate) mod current;
 pub(crate) mod flux;
 pub(crate) mod light_load;
+pub(crate) mod load_observer;
 pub(crate) mod low_speed;
 pub(crate) mod pi;
 pub(crate) mod speed;

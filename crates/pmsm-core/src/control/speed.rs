@@ -371,6 +371,15 @@ impl SpeedController {
         iq_ref.to_bits().saturating_abs() >= limit - (limit >> 6)
     }
 
+    /// Moves the output by `delta` (a feed-forward's change) within `±I_max`; the next step
+    /// starts from it and clamps to the limit.
+    pub fn shift_output(&mut self, delta: Pu) {
+        let i_max = self.config.i_max.to_bits();
+        let high = ((self.s >> S_SHIFT) as i32).saturating_add(delta.to_bits());
+        let high = high.max(-i_max).min(i_max);
+        self.s = ((high as i64) << S_SHIFT) | (self.s & 0xffff_ffff);
+    }
+
     /// Sets the output's limit to `limit` within `[0, I_max]`; the next step clamps to it.
     pub fn set_limit(&mut self, limit: Pu) {
         self.limit = limit.min(self.config.i_max).max(Pu::ZERO);

@@ -7,6 +7,8 @@ use crate::Angle;
 use crate::control::current::CurrentConfig;
 use crate::control::flux::FluxConfig;
 use crate::control::light_load::LightLoadConfig;
+#[cfg(feature = "load-observer")]
+use crate::control::load_observer::LoadObserverConfig;
 use crate::control::low_speed::LowSpeedConfig;
 use crate::control::speed::{SpeedConfig, SpeedGains};
 use crate::deadtime::{DeadTimeConfig, DeadTimeMode};
@@ -107,6 +109,9 @@ pub(crate) struct TaskConfig {
     pub zero_crossing_hold: bool,
     /// The speed loop's own gains, which the task's schedule switches back to.
     pub speed_own: SpeedGains,
+    /// [`DriveDesign::load_observer_rad_s`].
+    #[cfg(feature = "load-observer")]
+    pub load_observer: Option<LoadObserverConfig>,
     /// The speed loop while the injection gives the angle, and the speed reference below
     /// which it applies.
     #[cfg(feature = "injection")]
@@ -461,6 +466,13 @@ impl DriveConfig {
                 (ol.handover_speed_rad_s / ol.accel_rad_s2).clamp(0.01, 0.05) / tt,
             ) as u32,
             speed_own: speed.gains(),
+            #[cfg(feature = "load-observer")]
+            load_observer: LoadObserverConfig::of_design(
+                motor,
+                &base,
+                tt,
+                design.load_observer_rad_s,
+            )?,
             #[cfg(feature = "injection")]
             speed_injecting,
             speed_stiff,

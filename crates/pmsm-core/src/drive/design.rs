@@ -165,6 +165,11 @@ pub struct DriveDesign {
     /// rest to base speed) within `0.01/T_s`, for the NLO and the AO, where it exceeds
     /// `speed`'s (docs/khlaief2012.md, "stiffer above the handover").
     pub speed_stiff_rad_s: Option<f64>,
+    /// Bandwidth of the load observer that feeds the load's current forward into the speed
+    /// loop, rad/s; `None`: none. Default: ten times `1/τ_b` within half the task rate, for
+    /// the back-EMF estimators on motors whose resistive drop is below a quarter of their EMF
+    /// (docs/drive.md, "load observer").
+    pub load_observer_rad_s: Option<f64>,
     /// Bandwidth of the first-order filter on the estimated speed that the speed loop uses,
     /// rad/s, its time constant rounded to a power of two of samples (the filter is a shift);
     /// `None` for none. Default: five times the default speed-loop bandwidth for the back-EMF
@@ -340,6 +345,12 @@ impl DriveDesign {
                 matches!(estimator, EstimatorKind::Nlo | EstimatorKind::Ao)
                     && w > SPEED_BANDWIDTH_MAX_TS / base.sample_s
             }),
+            load_observer_rad_s: crate::control::load_observer::default_bandwidth_rad_s(
+                motor,
+                base,
+                base.sample_s * f64::from(TASK_PERIOD),
+                estimator.needs_open_loop_start(),
+            ),
             speed_filter_rad_s: Some(
                 if estimator.needs_open_loop_start() {
                     5.0

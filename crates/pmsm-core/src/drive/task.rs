@@ -64,6 +64,9 @@ pub struct DriveTask {
     speed: SpeedController,
     /// The speed loop runs the stiff gains (`TaskConfig::speed_stiff`).
     speed_stiff: bool,
+    /// The load observer (`TaskConfig::load_observer`), reset at each handover.
+    #[cfg(feature = "load-observer")]
+    pub(super) load: crate::control::load_observer::LoadObserver,
     /// Held at low speed on the injection's angle: the slower speed loop
     /// (`TaskConfig::speed_injecting`), no low-speed d current.
     #[cfg(feature = "injection")]
@@ -152,6 +155,8 @@ impl DriveTask {
         Self {
             speed: SpeedController::new(config.speed),
             speed_stiff: false,
+            #[cfg(feature = "load-observer")]
+            load: Default::default(),
             #[cfg(feature = "injection")]
             injection_hold: false,
             #[cfg(feature = "injection")]
@@ -522,6 +527,12 @@ impl DriveTask {
             }
         }
         let c = &self.config;
+        // The load's current moved: the speed loop's output with it, before its step.
+        #[cfg(feature = "load-observer")]
+        if let Some(o) = &c.load_observer {
+            let delta = self.load.step(o, w.omega_mean, w.i_dq.q);
+            self.speed.shift_output(delta);
+        }
         self.iq_ref = self.speed.step(omega_ref, self.speed_filtered).iq_ref;
         // The light-load d current follows |i_q*| slowly, the low-speed current fades with the
         // speed (or the start's handover current decays), held within the current limit that

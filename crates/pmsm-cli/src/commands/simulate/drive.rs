@@ -167,6 +167,9 @@ fn apply_control(design: &mut DriveDesign, sc: &Scenario, model: &MotorParams) {
     if let Some(on) = c.injection {
         design.injection = on.then(pmsm_core::InjectionDesign::required);
     }
+    if c.load_observer == Some(false) {
+        design.load_observer_rad_s = None;
+    }
     set(&mut design.flux.mtpa, c.mtpa);
     set(&mut design.flux.field_weakening, c.field_weakening);
     design.overmodulation = c.overmodulation;

@@ -141,6 +141,8 @@ impl DriveTask {
         self.handed_over_negative = self.speed_ref_run < Pu::ZERO;
         self.speed_filtered = w.omega;
         self.speed.reset(w.omega, iq);
+        #[cfg(feature = "load-observer")]
+        self.load.reset(w.omega);
         self.iq_ref = iq;
         self.flux.reset(&c.flux);
         self.light_load.reset(&c.light_load, iq, w.omega);
