@@ -21,6 +21,7 @@
 //! | driven backwards | the speed loop at 90 % of its limit in the reference's direction, the estimated speed the other way beyond 0.1 pu and above a ceiling that starts at its value and falls at 1/16 of the motor's largest deceleration, for 20 ms | 20–40 ms |
 //! | loss of lock (estimator's figure) | [`Estimator::health`] filtered over 10 ms above `Protection::health_limit_pu` (default 1.0 pu), from 100 ms after entering the closed loop, in steady state (40 ms at a constant reference with the estimate within 0.02 pu of it throughout, until the reference changes) | 10–20 ms |
 //! | loss of lock (angle against speed) | the estimated angle turning one way over a task period and the estimated speed the other, both beyond 0.03 pu and the speed below a quarter turn a period, in the closed loop, until the angle has turned a quarter turn (electrical) away from the speed's integral: the mirror solution of a back-EMF estimator (a rotor turning backwards at `θ` has the EMF of one turning forwards at `θ + π`), which a load that stops and reverses a light rotor leaves it in, half a turn off the rotor, or any estimate that turns away from the rotor while its speed does not | a quarter turn at twice the speed: 3 ms at 600 r/min on four pole pairs |
+//! | loss of lock (against the torque) | the speed loop at 90 % of its limit, the estimated speed falling against the limit's torque faster than the motor's largest acceleration (over 5 ms), and the estimator's filtered figure above its limit, from 100 ms after entering the closed loop: an estimate that has left the rotor (a rotor slows so only under a load of more than twice the drive's torque, and a healthy estimate that swings about the limit explains the currents) | 3–5 ms |
 //! | loss of lock (current tracking) | `|i_d − i_d*| + |i_q − i_q*|` in the estimated frame, filtered over 10 ms (held while the modulator limits the voltage) above a third of the current limit, from 100 ms after entering the closed loop | 10–50 ms |
 
 use super::Fault;
@@ -91,6 +92,9 @@ pub(crate) struct MonitorConfig {
     pub stall_rise: Pu,
     /// Steps (20 ms) the rotor must keep being driven backwards before the drive trips.
     pub backwards_samples: u32,
+    /// The motor's largest acceleration `p K_T I_max/J` per step: the estimate slowing
+    /// against the limit's torque faster than this (filter `ms5`) is a lost lock.
+    pub against_torque: Pu,
     /// Limit of the current loops' filtered tracking error `|e_d| + |e_q|` (filter `ms10`):
     /// a third of the speed loop's current limit. A healthy loop tracks within a few percent
     /// of the limit, but while the modulator limits the voltage (when the check holds); in a
@@ -155,6 +159,7 @@ impl MonitorConfig {
             backwards_fall: pu_from_f64(max_accel_rad_s2 / 16.0 * tt / omega_b),
             stall_rise: pu_from_f64(max_accel_rad_s2 / 64.0 * tt / omega_b),
             backwards_samples: libm::ceil(0.02 / tt) as u32,
+            against_torque: pu_from_f64(max_accel_rad_s2 * tt / omega_b),
             tracking_limit: pu_from_f64(current_limit_pu / 3.0).to_bits() >> 2,
             // Half a turn, a quarter, and a task period's turn per unit of speed, all from
             // one figure (π/(ω_b T) in Pu bits, as `phase_loss_turn`).
@@ -194,6 +199,8 @@ pub(crate) struct Monitor {
     backwards: u32,
     last_omega: Option<Pu>,
     jerk: Pu,
+    /// The estimate's deceleration against the limit's torque per step, filtered.
+    against_torque: Pu,
     /// The current loops' tracking error, filtered, in quarters of [`Pu`]'s bits.
     tracking: i32,
     /// How far the estimated angle has turned away from the estimated speed's integral while
@@ -433,14 +440,36 @@ impl Monitor {
             self.backwards = 0;
         }
         // Loss of lock: the estimate accelerating faster than the motor can, once settled.
-        if let Some(last) = self.last_omega.replace(s.omega)
-            && self.running_for > c.settle_samples
-        {
-            let step = s.omega.saturating_sub(last).saturating_abs();
-            self.jerk = follow(self.jerk, step, c.ms2);
-            if self.jerk > c.accel_limit {
+        // No fault before there is a last speed to compare with.
+        let last = self.last_omega.replace(s.omega)?;
+        if self.running_for <= c.settle_samples {
+            return None;
+        }
+        let step = s.omega.saturating_sub(last);
+        self.jerk = follow(self.jerk, step.saturating_abs(), c.ms2);
+        if self.jerk > c.accel_limit {
+            return Some(Fault::LossOfLock);
+        }
+        // Loss of lock: at the limit, the estimate slowing against the loop's torque faster
+        // than that torque accelerates the rotor, over 5 ms, while the estimator no longer
+        // explains the currents. A rotor slows so only under a load of more than twice the
+        // drive's torque; an estimate that has left the rotor does it as the angle error
+        // passes a quarter turn (motor B's model with ψ +20 % in its ramp through a fifth of
+        // rated speed, where the current-model MRAS lags and slips). A healthy estimate that
+        // a model's error makes swing about the limit (ψ −20 %) passes, its figure low. The
+        // common case costs one branch.
+        if limited && s.running {
+            let against = if s.iq_ref < Pu::ZERO {
+                step
+            } else {
+                step.saturating_neg()
+            };
+            self.against_torque = follow(self.against_torque, against, c.ms5);
+            if self.against_torque > c.against_torque && self.health > c.health_limit {
                 return Some(Fault::LossOfLock);
             }
+        } else {
+            self.against_torque = Pu::ZERO;
         }
         None
     }

@@ -274,3 +274,39 @@ fn an_angle_turning_with_the_speed_or_below_the_floor_never_trips() {
     });
     assert_eq!(out, None);
 }
+
+/// At the current limit, the estimate at 0.3 pu from the closed loop's start, falling from
+/// sample 2000 at `rate` times the motor's largest acceleration to 0.2 pu, with the health
+/// figure `health` (per unit) and the loop's torque along (`sign` 1) or against (−1) the
+/// reference of 0.5 pu; the sample of the first fault within `n` samples.
+fn slowing(rate: f64, health: f64, sign: f64, n: u32) -> Option<(u32, Fault)> {
+    let c = config();
+    let limit = c.design.speed.current_limit_a / c.base.current_a;
+    let a_max = crate::units::to_f64(c.task.monitor.stall_rise) * 64.0 * 14e3 / 8.0;
+    periods(n, |k| {
+        let t = f64::from(k.saturating_sub(2000)) / 14e3;
+        Signals {
+            omega_ref: pu_from_f64(0.5),
+            iq_ref: pu_from_f64(sign * limit),
+            health: pu_from_f64(health),
+            ..steady((0.3 - rate * a_max * t).max(0.2))
+        }
+    })
+}
+
+#[test]
+fn an_estimate_slowing_against_the_limits_torque_while_unhealthy_trips_loss_of_lock() {
+    // Twice the motor's largest acceleration against its torque: a load of three times the
+    // drive's torque, or an estimate that has left the rotor. The 5 ms filter (four task
+    // periods of 0.57 ms to the power of two, 4.6 ms) passes the limit within 0.7 of its
+    // time constant: 3.2 ms, 45 samples.
+    let (k, f) = slowing(2.0, 2.0, 1.0, 2400).expect("a fault");
+    assert_eq!(f, Fault::LossOfLock);
+    assert!((2020..=2080).contains(&k), "{k}");
+    // Not while the estimator explains the currents (a model's error makes a healthy
+    // estimate swing about the limit), not at half the full torque's deceleration (a load
+    // of 1.5 times the drive's torque), nor slowing along the torque.
+    assert_eq!(slowing(2.0, 0.5, 1.0, 2400), None);
+    assert_eq!(slowing(0.5, 2.0, 1.0, 2400), None);
+    assert_eq!(slowing(2.0, 2.0, -1.0, 2400), None);
+}
