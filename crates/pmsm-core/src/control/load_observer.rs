@@ -64,9 +64,7 @@ pub(crate) fn default_bandwidth_rad_s(
     if !cfg!(feature = "load-observer") {
         return None;
     }
-    let rated = motor.rated_speed_rpm.map_or(base.omega_e_rad_s, |n| {
-        n * core::f64::consts::TAU / 60.0 * motor.p()
-    });
+    let rated = crate::drive::rated_e_rad_s(motor, base);
     (back_emf && motor.rs_ohm * base.current_a < LOAD_OBSERVER_COPPER * motor.flux_wb * rated)
         .then(|| (LOAD_OBSERVER_BANDWIDTH / tau_b_s(motor, base)).min(0.5 / period_s))
 }

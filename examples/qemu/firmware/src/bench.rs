@@ -813,8 +813,8 @@ pub fn run_motors(
     report: &mut dyn FnMut(&str, &str, &Stats),
     ended: &mut dyn FnMut(&pmsm_pil::loops::LoopMotor, &pmsm_pil::loops::LoopEnd, bool),
 ) -> Result<(), ConfigError> {
-    for (k, make) in pmsm_pil::loops::LOOP_MOTORS.iter().enumerate() {
-        let m = make();
+    for (k, published) in pmsm_pil::loops::LOOP_MOTORS.iter().enumerate() {
+        let m = published.make();
         let mut sides = Sides::default();
         let end = pmsm_pil::loops::run(&m, &mut sides.measured(meter))?;
         report("isr", m.name, &sides.isr);

@@ -131,8 +131,8 @@ fn write_unchanged(path: &Path, bytes: &[u8], what: &str) -> Result<(), String> 
 /// compare its own with. Each loop must hold its rotor.
 fn closed_loops() -> Result<Vec<u8>, String> {
     let mut digests = Vec::new();
-    for make in loops::LOOP_MOTORS {
-        let m = make();
+    for published in &loops::LOOP_MOTORS {
+        let m = published.make();
         let end = loops::run(&m, &mut |d, x| d.step(x))
             .map_err(|e| format!("closed loop {}: {e}", m.name))?;
         let angle = end.error.to_rad();

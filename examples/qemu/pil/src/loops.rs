@@ -209,40 +209,89 @@ fn inverter(motor: &MotorParams, vdc_v: f64, pwm_hz: f64, dead_time_s: f64) -> I
     inv
 }
 
-/// `examples/published/motors.toml`, "DJI 2212 920KV": a drone outrunner, 7 pole pairs,
-/// 0.115 Ω, 17.6 µH, ψ 0.963 mWb (TI's identified values), rated 10 A rms, 9000 r/min, on
-/// 14.8 V at 24 kHz with 0.3 µs of dead time.
-fn drone() -> LoopMotor {
-    let mut m = MotorParams::new(
-        7, 0.115332, 1.76481e-5, 1.76481e-5, 9.629e-4, 5.06154e-6, 1.5e-6,
-    );
-    m.rated_current_a = Some(10.0);
-    m.rated_speed_rpm = Some(9000.0);
-    LoopMotor {
+/// A motor of `examples/published/motors.toml` and the inverter it runs on.
+pub struct Published {
+    /// The loop's name in the `PIL` lines.
+    pub name: &'static str,
+    /// [`MotorParams::new`]'s arguments: pole pairs, `R` (Ω), `L_d`, `L_q` (H), `ψ` (Wb),
+    /// `J` (kg m²), `B` (N m s).
+    pub pole_pairs: u32,
+    pub rs_ohm: f64,
+    pub ld_h: f64,
+    pub lq_h: f64,
+    pub flux_wb: f64,
+    pub j_kg_m2: f64,
+    pub b_nm_s: f64,
+    /// Ratings: current (A rms) and speed (r/min).
+    pub rated_current_a: f64,
+    pub rated_speed_rpm: f64,
+    /// The inverter: bus (V), PWM (Hz), dead time (s).
+    pub vdc_v: f64,
+    pub pwm_hz: f64,
+    pub dead_time_s: f64,
+}
+
+impl Published {
+    /// The loop of this motor at half its rated speed.
+    pub fn make(&self) -> LoopMotor {
+        let mut m = MotorParams::new(
+            self.pole_pairs,
+            self.rs_ohm,
+            self.ld_h,
+            self.lq_h,
+            self.flux_wb,
+            self.j_kg_m2,
+            self.b_nm_s,
+        );
+        m.rated_current_a = Some(self.rated_current_a);
+        m.rated_speed_rpm = Some(self.rated_speed_rpm);
+        LoopMotor {
+            name: self.name,
+            inverter: inverter(&m, self.vdc_v, self.pwm_hz, self.dead_time_s),
+            motor: m,
+            speed_frac: 0.5,
+        }
+    }
+}
+
+/// The low-inductance and the high-pole-count motor:
+/// - "DJI 2212 920KV": a drone outrunner, 7 pole pairs, 0.115 Ω, 17.6 µH, ψ 0.963 mWb (TI's
+///   identified values), rated 10 A rms, 9000 r/min, on 14.8 V at 24 kHz with 0.3 µs of
+///   dead time;
+/// - "MIT Mini Cheetah actuator motor": 21 pole pairs, 0.13 Ω, 80 µH, ψ 2.87 mWb, rated
+///   12 A rms, 1800 r/min, on 24 V at 40 kHz with 0.1 µs of dead time.
+pub const LOOP_MOTORS: [Published; 2] = [
+    Published {
         name: "low_l",
-        inverter: inverter(&m, 14.8, 24e3, 3e-7),
-        motor: m,
-        speed_frac: 0.5,
-    }
-}
-
-/// `examples/published/motors.toml`, "MIT Mini Cheetah actuator motor": 21 pole pairs,
-/// 0.13 Ω, 80 µH, ψ 2.87 mWb, rated 12 A rms, 1800 r/min, on 24 V at 40 kHz with 0.1 µs of
-/// dead time.
-fn actuator() -> LoopMotor {
-    let mut m = MotorParams::new(21, 0.13, 8e-5, 8e-5, 2.87e-3, 1.5e-4, 8.1e-5);
-    m.rated_current_a = Some(12.0);
-    m.rated_speed_rpm = Some(1800.0);
-    LoopMotor {
+        pole_pairs: 7,
+        rs_ohm: 0.115332,
+        ld_h: 1.76481e-5,
+        lq_h: 1.76481e-5,
+        flux_wb: 9.629e-4,
+        j_kg_m2: 5.06154e-6,
+        b_nm_s: 1.5e-6,
+        rated_current_a: 10.0,
+        rated_speed_rpm: 9000.0,
+        vdc_v: 14.8,
+        pwm_hz: 24e3,
+        dead_time_s: 3e-7,
+    },
+    Published {
         name: "high_p",
-        inverter: inverter(&m, 24.0, 40e3, 1e-7),
-        motor: m,
-        speed_frac: 0.5,
-    }
-}
-
-/// The low-inductance and the high-pole-count motor.
-pub const LOOP_MOTORS: [fn() -> LoopMotor; 2] = [drone, actuator];
+        pole_pairs: 21,
+        rs_ohm: 0.13,
+        ld_h: 8e-5,
+        lq_h: 8e-5,
+        flux_wb: 2.87e-3,
+        j_kg_m2: 1.5e-4,
+        b_nm_s: 8.1e-5,
+        rated_current_a: 12.0,
+        rated_speed_rpm: 1800.0,
+        vdc_v: 24.0,
+        pwm_hz: 40e3,
+        dead_time_s: 1e-7,
+    },
+];
 
 impl LoopMotor {
     /// The drive's defaults for the motor (`DriveDesign::default_for` with the estimator
