@@ -132,14 +132,20 @@ pub fn one(r: f64, l: f64, f: f64) -> Result<()> {
         .unwrap_or(1400);
     for row in run.rows.iter().step_by(every) {
         println!(
-            "  t {:.2} s  {:?}  speed {:.0} r/min  err {:+.3} rad  R̂ {:.3}  ψ̂ {:.4}  {:?}",
+            "  t {:.2} s  {:?}  speed {:.0} (est. {:.0}, ref {:.0}) r/min  err {:+.3} rad  \
+             i_dq [{:+.2}, {:+.2}] A  i_q* {:+.2} A  health {:.2}  R̂ {:.3}  ψ̂ {:.4}",
             row.t_s,
             row.state,
             row.speed_rpm,
+            row.speed_est_rpm,
+            row.speed_ref_rpm,
             row.angle_error_rad(),
+            row.i_dq_a[0],
+            row.i_dq_a[1],
+            row.i_q_ref_a,
+            row.health,
             row.model_rs_flux[0],
             row.model_rs_flux[1],
-            row.tracker
         );
     }
     Ok(())
