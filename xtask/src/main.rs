@@ -22,6 +22,8 @@
 //!   WebAssembly and its page) and serves it on 127.0.0.1 (`web.rs`, docs/workbench.md).
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
 //!   `docs/PERFORMANCE.md`).
+//! - `cargo xtask isr-profile [--write]`: where the interrupt step's instructions go on the
+//!   Cortex-M4 and the Cortex-M0, from QEMU's execution log (`isr_profile.rs`).
 
 mod accuracy;
 mod board;
@@ -32,6 +34,7 @@ mod family;
 mod family_seeds;
 mod identify_family;
 mod injection;
+mod isr_profile;
 mod light_load;
 mod map;
 mod observers_motor_a;
@@ -71,6 +74,7 @@ fn main() -> Result<()> {
             sweep::run(n)
         }
         "map" => map::main(&std::env::args().skip(2).collect::<Vec<_>>()),
+        "isr-profile" => isr_profile::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "family" => family::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "identify-family" => identify_family::main(&std::env::args().skip(2).collect::<Vec<_>>()),
         "robustness" => {
@@ -126,7 +130,7 @@ fn main() -> Result<()> {
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | {} | identify-family [N] [--seed S] | {} | {}",
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | isr-profile [--write] | {} | identify-family [N] [--seed S] | {} | {}",
             family::USAGE,
             injection::USAGE,
             web::USAGE
@@ -145,7 +149,7 @@ fn perf() -> Result<()> {
          Regenerate with `cargo xtask perf` (release build, a few minutes on 2 cores). \
          Every figure below is measured by that command; none is typed by hand.\n\n",
     );
-    let stages: [Stage; 14] = [
+    let stages: [Stage; 15] = [
         ("measuring the accuracy of the fixed-point numerics", || {
             Ok(accuracy::section())
         }),
@@ -182,6 +186,9 @@ fn perf() -> Result<()> {
         ("counting instructions in QEMU (scripts/pil.sh)", || {
             Ok(pil::section())
         }),
+        // The interrupt step's profile is `cargo xtask isr-profile`'s (minutes of QEMU's
+        // execution log): kept as it is.
+        ("", || Ok(isr_profile::kept_section())),
         (
             "measuring the board firmware (scripts/firmware-size.sh)",
             || Ok(board::section()),

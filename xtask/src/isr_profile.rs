@@ -1,0 +1,405 @@
+//! `cargo xtask isr-profile [--write]`: where the interrupt step's instructions go, on both
+//! machines of `scripts/pil.sh`.
+//!
+//! The PIL firmware (`examples/qemu`, built as `scripts/pil.sh` builds it) runs in QEMU with
+//! one instruction per translation block and the execution log on (`-singlestep -d
+//! exec,nochain`, filtered to the core's code and the meter's), which names the address of
+//! every instruction executed. Between the firmware's `profile_begin` and `profile_end` (the
+//! `isr_mras_current` benchmark: motor B's recorded run, current-model MRAS) every call of
+//! `DriveIsr::step` that updates the estimator (the closed loop, as the benchmark counts) is
+//! followed from its entry to its return into the meter; each address is attributed, by the
+//! chain of functions inlined at it (`addr2line -i`), to the outermost of them that names a
+//! part of the step. The sum over the parts is the step without the meter's overhead, so a
+//! little below `scripts/pil.sh`'s mean.
+
+use anyhow::{Context, Result, bail};
+use std::collections::{BTreeMap, HashMap};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// The section's title in docs/PERFORMANCE.md.
+pub const TITLE: &str = "## Where the interrupt step's instructions go";
+
+/// The parts of the step, each with the function names (substrings of the demangled names
+/// `addr2line` gives) that belong to it, in the order they are matched.
+const PARTS: [(&str, &[&str]); 8] = [
+    (
+        "estimator (current-model MRAS)",
+        &["as pmsm_core::observer::Estimator>::update", "AnyEstimator"],
+    ),
+    ("sin/cos (the estimator's next frame)", &["sin_cos"]),
+    ("current loops", &["CurrentController"]),
+    ("dead-time vector", &["deadtime_vector", "DeadTimeConfig"]),
+    (
+        "modulator (SVPWM, the estimator's voltage, delay line)",
+        &["modulate", "svpwm::", "delayed"],
+    ),
+    (
+        "Clarke, Park, mid-period frame",
+        &[
+            "frames::clarke",
+            "frames::park",
+            "inverse_park",
+            "mid_frame",
+        ],
+    ),
+    (
+        "trips (overcurrent, bus, sum, overspeed)",
+        &["protection", "overspeed"],
+    ),
+    (
+        "the task's command and the window",
+        &["end_period", "::take", "handoff::", "window"],
+    ),
+];
+
+/// The rest: the phase dispatch, telemetry, the period's sums.
+const REST: &str = "dispatch, telemetry, the period's sums";
+
+/// The two machines: Rust target, QEMU's `-cpu` and `-machine`.
+const MACHINES: [(&str, &str, &str); 2] = [
+    ("thumbv7em-none-eabihf", "cortex-m4", "mps2-an386"),
+    ("thumbv6m-none-eabi", "cortex-m0", "microbit"),
+];
+
+pub fn main(args: &[String]) -> Result<()> {
+    let write = args.iter().any(|a| a == "--write");
+    let section = section()?;
+    print!("{section}");
+    if write {
+        crate::family::write_performance(|doc| crate::family::put_section(doc, TITLE, &section))?;
+    }
+    Ok(())
+}
+
+/// The section of `cargo xtask perf`'s document, kept as it is (`isr-profile --write`
+/// writes it).
+pub fn kept_section() -> String {
+    let doc =
+        std::fs::read_to_string(crate::root().join("docs/PERFORMANCE.md")).unwrap_or_default();
+    crate::family::section_span(&doc, TITLE).map_or(String::new(), |(a, b)| doc[a..b].to_owned())
+}
+
+/// Builds, traces and attributes on both machines; the markdown section.
+fn section() -> Result<String> {
+    let qemu = crate::root().join("examples/qemu");
+    let recording = recording(&qemu)?;
+    let mut columns = Vec::new();
+    for (target, cpu, machine) in MACHINES {
+        eprintln!("isr-profile: {cpu}: building and tracing (a few minutes)");
+        let elf = build(&qemu, target, &recording)?;
+        columns.push((cpu, profile(&elf, cpu, machine)?));
+    }
+    let mut s = format!(
+        "{TITLE}\n\n`cargo xtask isr-profile --write` (the execution log of QEMU, one \
+         instruction per block, over the `isr_mras_current` benchmark of `scripts/pil.sh`: motor \
+         B's recorded closed loop, current-model MRAS, defaults): instructions per call of \
+         `DriveIsr::step` in the closed loop, by part, each instruction counted in the outermost \
+         function inlined at it that names a part. Without the meter's overhead, so a little below \
+         the benchmark's mean.\n\n| part | {} | {} |\n|---|--:|--:|\n",
+        columns[0].0, columns[1].0
+    );
+    let names = PARTS.iter().map(|p| p.0).chain([REST]);
+    for name in names {
+        let cell = |c: &Profile| c.parts.get(name).map_or(0.0, |n| n / c.calls as f64);
+        s += &format!(
+            "| {name} | {:.0} | {:.0} |\n",
+            cell(&columns[0].1),
+            cell(&columns[1].1)
+        );
+    }
+    let total = |c: &Profile| c.parts.values().sum::<f64>() / c.calls.max(1) as f64;
+    s += &format!(
+        "| **total** | **{:.0}** | **{:.0}** |\n\nCalls followed: {} and {}.\n\n",
+        total(&columns[0].1),
+        total(&columns[1].1),
+        columns[0].1.calls,
+        columns[1].1.calls
+    );
+    Ok(s)
+}
+
+/// The host's recording of the replay cases, written as `scripts/pil.sh` writes it.
+fn recording(qemu: &Path) -> Result<PathBuf> {
+    let out = qemu.join("target/pil");
+    std::fs::create_dir_all(&out)?;
+    let path = out.join("recording.bin");
+    run(Command::new("cargo")
+        .current_dir(qemu)
+        .args([
+            "run",
+            "--release",
+            "-q",
+            "-p",
+            "pmsm-pil-host",
+            "--",
+            "--output",
+        ])
+        .arg(&path))
+    .context("the host recorder")?;
+    Ok(path)
+}
+
+/// The PIL firmware for `target`, with `recording` embedded; its ELF.
+fn build(qemu: &Path, target: &str, recording: &Path) -> Result<PathBuf> {
+    run(Command::new("cargo")
+        .current_dir(qemu)
+        .env("PIL_RECORDING", recording)
+        .args([
+            "build",
+            "--release",
+            "-q",
+            "-p",
+            "pmsm-pil-firmware",
+            "--target",
+            target,
+        ]))
+    .with_context(|| format!("the firmware for {target}"))?;
+    Ok(qemu.join("target").join(target).join("release/pil"))
+}
+
+fn run(cmd: &mut Command) -> Result<()> {
+    let status = cmd.status()?;
+    if !status.success() {
+        bail!("{cmd:?} failed: {status}");
+    }
+    Ok(())
+}
+
+/// Instructions by part, summed over the calls followed.
+#[derive(Default)]
+struct Profile {
+    calls: u64,
+    parts: BTreeMap<&'static str, f64>,
+}
+
+/// The addresses the trace needs, from the ELF's symbols.
+struct Symbols {
+    /// The core's code, from its first function to the end of its last.
+    core: (u32, u32),
+    meter: (u32, u32),
+    begin: u32,
+    end: u32,
+    step: u32,
+    /// The estimators' updates: a call that runs one is in the closed loop.
+    updates: Vec<(u32, u32)>,
+}
+
+fn symbols(elf: &Path) -> Result<Symbols> {
+    let out = Command::new("arm-none-eabi-nm")
+        .arg("-S")
+        .arg(elf)
+        .output()
+        .context("arm-none-eabi-nm (apt-get install binutils-arm-none-eabi)")?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut core = (u32::MAX, 0);
+    let (mut meter, mut begin, mut end, mut step) = (None, None, None, None);
+    let mut updates = Vec::new();
+    for line in text.lines() {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let [addr, size, kind, name] = f[..] else {
+            continue;
+        };
+        if !kind.eq_ignore_ascii_case("t") {
+            continue;
+        }
+        let (a, n) = (
+            u32::from_str_radix(addr, 16)?,
+            u32::from_str_radix(size, 16)?,
+        );
+        if name.contains("pmsm_core") {
+            core = (core.0.min(a), core.1.max(a + n));
+        }
+        if name.contains("5meter5ticks") {
+            meter = Some((a, a + n));
+        }
+        if name.contains("13profile_begin") {
+            begin = Some(a);
+        }
+        if name.contains("11profile_end") {
+            end = Some(a);
+        }
+        if name.contains("8DriveIsr4step") {
+            step = Some(a);
+        }
+        if name.contains("Estimator$GT$6update") && !name.contains("AnyEstimator") {
+            updates.push((a, a + n));
+        }
+    }
+    let need = |x: Option<u32>, what: &str| x.with_context(|| format!("no symbol for {what}"));
+    Ok(Symbols {
+        core,
+        meter: meter.context("no symbol for the meter's ticks")?,
+        begin: need(begin, "profile_begin")?,
+        end: need(end, "profile_end")?,
+        step: need(step, "DriveIsr::step")?,
+        updates,
+    })
+}
+
+/// Runs the firmware in QEMU with the execution log and attributes the calls followed.
+fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
+    let sym = symbols(elf)?;
+    let filter = format!(
+        "{:#x}..{:#x},{:#x}..{:#x},{:#x}..{:#x},{:#x}..{:#x}",
+        sym.core.0,
+        sym.core.1 - 1,
+        sym.meter.0,
+        sym.meter.1 - 1,
+        sym.begin,
+        sym.begin + 1,
+        sym.end,
+        sym.end + 1
+    );
+    let mut child = Command::new("qemu-system-arm")
+        .args(["-cpu", cpu, "-machine", machine, "-nographic"])
+        .args([
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-icount",
+            "shift=8",
+        ])
+        .args([
+            "-singlestep",
+            "-d",
+            "exec,nochain",
+            "-dfilter",
+            &filter,
+            "-kernel",
+        ])
+        .arg(elf)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .context("qemu-system-arm (apt-get install qemu-system-arm)")?;
+    let log = BufReader::with_capacity(1 << 20, child.stderr.take().context("QEMU's log")?);
+    // Per address, the instructions of the calls followed.
+    let mut counts: HashMap<u32, u64> = HashMap::new();
+    let mut call: HashMap<u32, u64> = HashMap::new();
+    let (mut window, mut inside, mut closed) = (false, false, false);
+    let mut calls = 0u64;
+    for line in log.split(b'\n') {
+        let line = line?;
+        let Some(pc) = trace_pc(&line) else {
+            continue;
+        };
+        if pc == sym.begin {
+            window = true;
+        } else if pc == sym.end {
+            window = false;
+        }
+        if window && !inside && pc == sym.step {
+            inside = true;
+            closed = false;
+            call.clear();
+        }
+        if !inside {
+            continue;
+        }
+        if (sym.meter.0..sym.meter.1).contains(&pc) {
+            inside = false;
+            if closed {
+                calls += 1;
+                for (a, n) in call.drain() {
+                    *counts.entry(a).or_default() += n;
+                }
+            }
+            continue;
+        }
+        closed |= sym.updates.iter().any(|(a, b)| (*a..*b).contains(&pc));
+        *call.entry(pc).or_default() += 1;
+    }
+    let status = child.wait()?;
+    if !status.success() || calls == 0 {
+        bail!(
+            "QEMU's run of {} ended {status}, {calls} calls followed",
+            elf.display()
+        );
+    }
+    let mut profile = Profile {
+        calls,
+        ..Profile::default()
+    };
+    for (pc, chain) in chains(elf, counts.keys().copied())? {
+        let part = part_of(&chain);
+        *profile.parts.entry(part).or_default() += counts[&pc] as f64;
+    }
+    Ok(profile)
+}
+
+/// The address of a line of QEMU's execution log, `Trace 0: 0x… [flags/pc/…] name`.
+fn trace_pc(line: &[u8]) -> Option<u32> {
+    if !line.starts_with(b"Trace") {
+        return None;
+    }
+    let open = line.iter().position(|&c| c == b'[')?;
+    let mut fields = line[open + 1..].split(|&c| c == b'/');
+    fields.next()?;
+    u32::from_str_radix(std::str::from_utf8(fields.next()?).ok()?, 16).ok()
+}
+
+/// The functions inlined at each address, innermost first (`addr2line -a -f -i -C`).
+fn chains(elf: &Path, pcs: impl Iterator<Item = u32>) -> Result<Vec<(u32, Vec<String>)>> {
+    let pcs: Vec<String> = pcs.map(|p| format!("{p:#x}")).collect();
+    let out = Command::new("arm-none-eabi-addr2line")
+        .args(["-a", "-f", "-i", "-C", "-e"])
+        .arg(elf)
+        .args(&pcs)
+        .output()
+        .context("arm-none-eabi-addr2line")?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut chains: Vec<(u32, Vec<String>)> = Vec::new();
+    let mut lines = text.lines();
+    while let Some(line) = lines.next() {
+        if let Some(hex) = line.strip_prefix("0x") {
+            chains.push((u32::from_str_radix(hex, 16)?, Vec::new()));
+        } else if let Some((_, chain)) = chains.last_mut() {
+            // A function's name, then its file and line.
+            chain.push(line.to_owned());
+            lines.next();
+        }
+    }
+    Ok(chains)
+}
+
+/// The part of the outermost function of `chain` (innermost first) that names one.
+fn part_of(chain: &[String]) -> &'static str {
+    chain
+        .iter()
+        .rev()
+        .find_map(|f| {
+            PARTS
+                .iter()
+                .find(|(_, names)| names.iter().any(|n| f.contains(n)))
+                .map(|p| p.0)
+        })
+        .unwrap_or(REST)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_trace_line_gives_its_address_and_a_chain_its_outermost_part() {
+        let line = b"Trace 0: 0x7fa21458a780 [00800400/0000aef0/00000010/ff020201] _ZN9pmsm_core";
+        assert_eq!(trace_pc(line), Some(0xaef0));
+        assert_eq!(trace_pc(b"IN: foo"), None);
+        let chain = |names: &[&str]| names.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        // Innermost first: a saturating add inlined in the PI inlined in the current loops.
+        assert_eq!(
+            part_of(&chain(&[
+                "<i32>::saturating_add",
+                "pmsm_core::control::pi::Pi::finish",
+                "pmsm_core::control::current::CurrentController::step_on",
+                "pmsm_core::drive::isr::DriveIsr::sample",
+            ])),
+            "current loops"
+        );
+        assert_eq!(
+            part_of(&chain(&["pmsm_core::drive::isr::DriveIsr::sample"])),
+            REST
+        );
+    }
+}
