@@ -1,5 +1,5 @@
-//! `cargo xtask isr-profile [--write]`: where the interrupt step's instructions go, on both
-//! machines of `scripts/pil.sh`.
+//! `cargo xtask isr-profile [--write] [--lines]`: where the interrupt step's instructions go,
+//! on both machines of `scripts/pil.sh` (`--lines`: also the source lines that cost most).
 //!
 //! The PIL firmware (`examples/qemu`, built as `scripts/pil.sh` builds it) runs in QEMU with
 //! one instruction per translation block and the execution log on (`-singlestep -d
@@ -9,7 +9,9 @@
 //! `DriveIsr::step` that updates the estimator (the closed loop, as the benchmark counts) is
 //! followed from its entry to its return into the meter; each address is attributed, by the
 //! chain of functions inlined at it (`addr2line -i`), to the outermost of them that names a
-//! part of the step. The sum over the parts is the step without the meter's overhead, so a
+//! part of the step; an instruction of an out-of-line helper that names none (the Cortex-M0's
+//! wide products) goes to the part of its call site, which the trace follows (a jump to a
+//! function's first address is a call, a landing after a call site its return). The sum over the parts is the step without the meter's overhead, so a
 //! little below `scripts/pil.sh`'s mean.
 
 use anyhow::{Context, Result, bail};
@@ -65,8 +67,19 @@ const MACHINES: [(&str, &str, &str); 2] = [
 
 pub fn main(args: &[String]) -> Result<()> {
     let write = args.iter().any(|a| a == "--write");
-    let section = section()?;
+    let lines = args.iter().any(|a| a == "--lines");
+    let (section, columns) = section()?;
     print!("{section}");
+    if lines {
+        for (cpu, p) in &columns {
+            println!("{cpu}: the lines of each part, instructions per call");
+            let mut v: Vec<_> = p.lines.iter().collect();
+            v.sort_by(|a, b| b.1.total_cmp(a.1));
+            for ((part, at), n) in v.iter().take(40) {
+                println!("{:7.1}  {part}: {at}", *n / p.calls as f64);
+            }
+        }
+    }
     if write {
         crate::family::write_performance(|doc| crate::family::put_section(doc, TITLE, &section))?;
     }
@@ -81,8 +94,8 @@ pub fn kept_section() -> String {
     crate::family::section_span(&doc, TITLE).map_or(String::new(), |(a, b)| doc[a..b].to_owned())
 }
 
-/// Builds, traces and attributes on both machines; the markdown section.
-fn section() -> Result<String> {
+/// Builds, traces and attributes on both machines; the markdown section and the profiles.
+fn section() -> Result<(String, Vec<(&'static str, Profile)>)> {
     let qemu = crate::root().join("examples/qemu");
     let recording = recording(&qemu)?;
     let mut columns = Vec::new();
@@ -96,8 +109,9 @@ fn section() -> Result<String> {
          instruction per block, over the `isr_mras_current` benchmark of `scripts/pil.sh`: motor \
          B's recorded closed loop, current-model MRAS, defaults): instructions per call of \
          `DriveIsr::step` in the closed loop, by part, each instruction counted in the outermost \
-         function inlined at it that names a part. Without the meter's overhead, so a little below \
-         the benchmark's mean.\n\n| part | {} | {} |\n|---|--:|--:|\n",
+         function inlined at it that names a part (in an out-of-line helper that names none, a \
+         wide product on the Cortex-M0, its caller's). Without the meter's overhead, so a little \
+         below the benchmark's mean. `--lines` lists the source lines that cost most.\n\n| part | {} | {} |\n|---|--:|--:|\n",
         columns[0].0, columns[1].0
     );
     let names = PARTS.iter().map(|p| p.0).chain([REST]);
@@ -117,7 +131,7 @@ fn section() -> Result<String> {
         columns[0].1.calls,
         columns[1].1.calls
     );
-    Ok(s)
+    Ok((s, columns))
 }
 
 /// The host's recording of the replay cases, written as `scripts/pil.sh` writes it.
@@ -167,11 +181,13 @@ fn run(cmd: &mut Command) -> Result<()> {
     Ok(())
 }
 
-/// Instructions by part, summed over the calls followed.
+/// Instructions by part, summed over the calls followed, and by the source line of the
+/// outermost function inlined at each address (in the step's own code).
 #[derive(Default)]
 struct Profile {
     calls: u64,
     parts: BTreeMap<&'static str, f64>,
+    lines: BTreeMap<(&'static str, String), f64>,
 }
 
 /// The addresses the trace needs, from the ELF's symbols.
@@ -184,6 +200,8 @@ struct Symbols {
     step: u32,
     /// The estimators' updates: a call that runs one is in the closed loop.
     updates: Vec<(u32, u32)>,
+    /// Every function's first address: a jump there is a call.
+    entries: std::collections::HashSet<u32>,
 }
 
 fn symbols(elf: &Path) -> Result<Symbols> {
@@ -196,6 +214,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
     let mut core = (u32::MAX, 0);
     let (mut meter, mut begin, mut end, mut step) = (None, None, None, None);
     let mut updates = Vec::new();
+    let mut entries = std::collections::HashSet::new();
     for line in text.lines() {
         let f: Vec<&str> = line.split_whitespace().collect();
         let [addr, size, kind, name] = f[..] else {
@@ -208,6 +227,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
             u32::from_str_radix(addr, 16)?,
             u32::from_str_radix(size, 16)?,
         );
+        entries.insert(a);
         if name.contains("pmsm_core") {
             core = (core.0.min(a), core.1.max(a + n));
         }
@@ -235,6 +255,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
         end: need(end, "profile_end")?,
         step: need(step, "DriveIsr::step")?,
         updates,
+        entries,
     })
 }
 
@@ -274,11 +295,13 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
         .spawn()
         .context("qemu-system-arm (apt-get install qemu-system-arm)")?;
     let log = BufReader::with_capacity(1 << 20, child.stderr.take().context("QEMU's log")?);
-    // Per address, the instructions of the calls followed.
-    let mut counts: HashMap<u32, u64> = HashMap::new();
-    let mut call: HashMap<u32, u64> = HashMap::new();
+    // Per address and the call site of the out-of-line function it is in (the innermost
+    // call not yet returned from, if any), the instructions of the calls followed.
+    let mut counts: HashMap<(u32, Option<u32>), u64> = HashMap::new();
+    let mut call: HashMap<(u32, Option<u32>), u64> = HashMap::new();
+    let mut sites = Sites::default();
     let (mut window, mut inside, mut closed) = (false, false, false);
-    let mut calls = 0u64;
+    let (mut calls, mut last) = (0u64, 0u32);
     for line in log.split(b'\n') {
         let line = line?;
         let Some(pc) = trace_pc(&line) else {
@@ -293,6 +316,8 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
             inside = true;
             closed = false;
             call.clear();
+            sites = Sites::default();
+            last = pc;
         }
         if !inside {
             continue;
@@ -307,8 +332,10 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
             }
             continue;
         }
+        sites.follow(pc, last, pc != sym.step && sym.entries.contains(&pc));
+        last = pc;
         closed |= sym.updates.iter().any(|(a, b)| (*a..*b).contains(&pc));
-        *call.entry(pc).or_default() += 1;
+        *call.entry((pc, sites.innermost())).or_default() += 1;
     }
     let status = child.wait()?;
     if !status.success() || calls == 0 {
@@ -321,11 +348,65 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
         calls,
         ..Profile::default()
     };
-    for (pc, chain) in chains(elf, counts.keys().copied())? {
-        let part = part_of(&chain);
-        *profile.parts.entry(part).or_default() += counts[&pc] as f64;
+    let mut pcs: Vec<u32> = counts.keys().map(|k| k.0).collect();
+    pcs.extend(counts.keys().filter_map(|k| k.1));
+    pcs.sort_unstable();
+    pcs.dedup();
+    let chains: HashMap<u32, Vec<Frame>> = chains(elf, pcs.into_iter())?.into_iter().collect();
+    let none = Vec::new();
+    for ((pc, site), n) in counts {
+        let chain = chains.get(&pc).unwrap_or(&none);
+        // An out-of-line helper (a wide product, a reciprocal) names no part: its caller's.
+        let mut part = part_of(chain);
+        if part == REST
+            && let Some(site) = site
+        {
+            part = part_of(chains.get(&site).unwrap_or(&none));
+        }
+        let n = n as f64;
+        *profile.parts.entry(part).or_default() += n;
+        // The chain of calls below the step (or the out-of-line function), outermost first:
+        // each function's short name and the line in it, to three levels.
+        let at = chain
+            .iter()
+            .rev()
+            .skip(1)
+            .take(3)
+            .map(|f| {
+                let short = f.name.rsplit("::").next().unwrap_or(&f.name);
+                format!("{short}@{}", f.at)
+            })
+            .collect::<Vec<_>>()
+            .join(" > ");
+        *profile.lines.entry((part, at)).or_default() += n;
     }
     Ok(profile)
+}
+
+/// The call sites not yet returned from, innermost last.
+#[derive(Default)]
+struct Sites(Vec<u32>);
+
+impl Sites {
+    /// Follows the executed address `pc` after `last`; `entry`: `pc` is a function's first
+    /// address. A return lands after its call site (`bl`, 4 bytes, or `blx`, 2) and returns
+    /// from every call made since (a tail call's `b` never sees its own return); a jump to a
+    /// function's first address is a call from `last`.
+    fn follow(&mut self, pc: u32, last: u32, entry: bool) {
+        if let Some(k) = self
+            .0
+            .iter()
+            .rposition(|&s| pc == s.wrapping_add(4) || pc == s.wrapping_add(2))
+        {
+            self.0.truncate(k);
+        } else if entry && self.0.len() < 64 {
+            self.0.push(last);
+        }
+    }
+
+    fn innermost(&self) -> Option<u32> {
+        self.0.last().copied()
+    }
 }
 
 /// The address of a line of QEMU's execution log, `Trace 0: 0x… [flags/pc/…] name`.
@@ -340,7 +421,7 @@ fn trace_pc(line: &[u8]) -> Option<u32> {
 }
 
 /// The functions inlined at each address, innermost first (`addr2line -a -f -i -C`).
-fn chains(elf: &Path, pcs: impl Iterator<Item = u32>) -> Result<Vec<(u32, Vec<String>)>> {
+fn chains(elf: &Path, pcs: impl Iterator<Item = u32>) -> Result<Vec<(u32, Vec<Frame>)>> {
     let pcs: Vec<String> = pcs.map(|p| format!("{p:#x}")).collect();
     let out = Command::new("arm-none-eabi-addr2line")
         .args(["-a", "-f", "-i", "-C", "-e"])
@@ -349,29 +430,39 @@ fn chains(elf: &Path, pcs: impl Iterator<Item = u32>) -> Result<Vec<(u32, Vec<St
         .output()
         .context("arm-none-eabi-addr2line")?;
     let text = String::from_utf8_lossy(&out.stdout);
-    let mut chains: Vec<(u32, Vec<String>)> = Vec::new();
+    let mut chains: Vec<(u32, Vec<Frame>)> = Vec::new();
     let mut lines = text.lines();
     while let Some(line) = lines.next() {
         if let Some(hex) = line.strip_prefix("0x") {
             chains.push((u32::from_str_radix(hex, 16)?, Vec::new()));
         } else if let Some((_, chain)) = chains.last_mut() {
             // A function's name, then its file and line.
-            chain.push(line.to_owned());
-            lines.next();
+            let at = lines.next().unwrap_or("");
+            let at = at.rsplit('/').next().unwrap_or(at);
+            chain.push(Frame {
+                name: line.to_owned(),
+                at: at.split(' ').next().unwrap_or(at).to_owned(),
+            });
         }
     }
     Ok(chains)
 }
 
+/// A function inlined at an address, and the file and line in it.
+struct Frame {
+    name: String,
+    at: String,
+}
+
 /// The part of the outermost function of `chain` (innermost first) that names one.
-fn part_of(chain: &[String]) -> &'static str {
+fn part_of(chain: &[Frame]) -> &'static str {
     chain
         .iter()
         .rev()
         .find_map(|f| {
             PARTS
                 .iter()
-                .find(|(_, names)| names.iter().any(|n| f.contains(n)))
+                .find(|(_, names)| names.iter().any(|n| f.name.contains(n)))
                 .map(|p| p.0)
         })
         .unwrap_or(REST)
@@ -386,7 +477,15 @@ mod tests {
         let line = b"Trace 0: 0x7fa21458a780 [00800400/0000aef0/00000010/ff020201] _ZN9pmsm_core";
         assert_eq!(trace_pc(line), Some(0xaef0));
         assert_eq!(trace_pc(b"IN: foo"), None);
-        let chain = |names: &[&str]| names.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let chain = |names: &[&str]| {
+            names
+                .iter()
+                .map(|s| Frame {
+                    name: s.to_string(),
+                    at: String::new(),
+                })
+                .collect::<Vec<_>>()
+        };
         // Innermost first: a saturating add inlined in the PI inlined in the current loops.
         assert_eq!(
             part_of(&chain(&[
@@ -401,5 +500,23 @@ mod tests {
             part_of(&chain(&["pmsm_core::drive::isr::DriveIsr::sample"])),
             REST
         );
+    }
+
+    #[test]
+    fn call_sites_follow_calls_returns_and_tail_calls() {
+        let mut s = Sites::default();
+        // A `bl` at 0x100 to 0x500; inside it a tail call (`b`) at 0x510 to 0x600, which
+        // returns straight to 0x104.
+        s.follow(0x500, 0x100, true);
+        assert_eq!(s.innermost(), Some(0x100));
+        s.follow(0x502, 0x500, false);
+        s.follow(0x600, 0x510, true);
+        assert_eq!(s.innermost(), Some(0x510));
+        s.follow(0x104, 0x620, false);
+        assert_eq!(s.innermost(), None);
+        // A `blx` (2 bytes) at 0x200 to 0x700, back at 0x202.
+        s.follow(0x700, 0x200, true);
+        s.follow(0x202, 0x708, false);
+        assert_eq!(s.innermost(), None);
     }
 }
