@@ -16,6 +16,8 @@ struct Reference {
     lq: f64,
     half_turn: f64,
     min_speed: f64,
+    /// Below the least speed, with the gate's hysteresis.
+    slow: bool,
     max_dw: f64,
     filter: f64,
     w_f: Option<f64>,
@@ -51,6 +53,7 @@ impl Reference {
             lq: m.lq_h / base.inductance_h,
             half_turn: 0.5 * base.omega_e_rad_s * base.sample_s,
             min_speed: d.min_speed_rad_s / base.omega_e_rad_s,
+            slow: true,
             max_dw: d.max_accel_rad_s2 * dt / base.omega_e_rad_s,
             filter: dt / SPEED_FILTER_S,
             w_f: None,
@@ -102,7 +105,12 @@ impl Reference {
         p[1] = (p[1] + self.q[1]).clamp(-c, c);
         let i_abs = id.hypot(iq);
         let residual = self.inv_v * (self.band / i_abs).min(1.0);
-        if s.omega.abs() < self.min_speed
+        self.slow = if self.slow {
+            s.omega.abs() <= self.min_speed * (1.0 + f64::from(SPEED_HYSTERESIS))
+        } else {
+            s.omega.abs() < self.min_speed
+        };
+        if self.slow
             || residual > self.inv_ratio * self.psi0 * s.omega.abs()
             || self.dw_f.abs() > self.max_dw
         {
@@ -401,6 +409,27 @@ fn frozen_outside_run_below_the_least_speed_when_saturated_or_in_a_transient() {
     println!("learning again after {first:?} updates");
     assert!(first.is_some_and(|k| k > 5));
     assert!((0..20).any(|_| t.update(&input(&s))));
+}
+
+/// A speed held at the gate: frozen on the way up until an eighth above it, then learning
+/// down to the gate itself, so that the speed's swings about it do not open and close it.
+#[test]
+fn the_speed_gate_opens_an_eighth_above_where_it_closes() {
+    let (mut t, r) = setup(|_| {});
+    let at = |t: &mut Tracker, frac: f64| {
+        let s = steady(&r, r.r0, r.psi0, frac * r.min_speed, 1.0, 0.0, 0.0, 0.0);
+        t.update(&input(&s));
+        // Learning, or frozen for another reason (the status keeps the last reason).
+        t.status().learning || t.status().frozen != Frozen::LowSpeed
+    };
+    assert!(!at(&mut t, 0.95));
+    assert!(!at(&mut t, 1.05));
+    assert!(!at(&mut t, 1.12));
+    assert!(at(&mut t, 1.13));
+    assert!(at(&mut t, 1.05));
+    assert!(at(&mut t, 1.001));
+    assert!(!at(&mut t, 0.99));
+    assert!(!at(&mut t, 1.1));
 }
 
 #[test]
