@@ -6,7 +6,9 @@
 // The values compared exactly are copied from the file, not computed.
 #![allow(clippy::float_cmp)]
 
-use pmsm_cli::commands::simulate::stats::{first_fault, rms_angle, speed_err, std_dev, window};
+use pmsm_cli::commands::simulate::stats::{
+    first_fault, max_speed_off, rms_angle, speed_err, std_dev, window,
+};
 use pmsm_cli::commands::simulate::{build_drive, build_plant, run_scenario};
 use pmsm_cli::scenario_file;
 
@@ -307,10 +309,7 @@ fn a_bare_400_w_servo_holds_a_step_of_half_its_rated_torque_with_the_load_observ
     let run = run_scenario(&example_edited("servo-400w-load-step.toml", &half)).unwrap();
     assert!(first_fault(&run.rows).is_none());
     let settled = window(&run.rows, 1.05, 1.2);
-    let worst = settled
-        .iter()
-        .map(|r| (r.speed_rpm - 1500.0).abs())
-        .fold(0.0, f64::max);
+    let worst = max_speed_off(&settled, 1500.0);
     let rms = rms_angle(&settled);
     println!("after the step: speed within {worst:.1} r/min, angle {rms:.4} rad rms");
     assert!(worst <= 75.0 && rms <= 0.05, "{worst} r/min, {rms} rad");
@@ -345,10 +344,7 @@ fn a_gimbal_motor_without_its_load_holds_half_its_rated_torque_on_the_stiff_loop
     let run = run_scenario(&scenario_text("gimbal-load-step", text)).unwrap();
     assert!(first_fault(&run.rows).is_none());
     let settled = window(&run.rows, 1.2, 1.5);
-    let worst = settled
-        .iter()
-        .map(|r| (r.speed_rpm - 150.0).abs())
-        .fold(0.0, f64::max);
+    let worst = max_speed_off(&settled, 150.0);
     let rms = rms_angle(&settled);
     println!("after the step: speed within {worst:.2} r/min, angle {rms:.4} rad rms");
     assert!(worst <= 15.0 && rms <= 0.15, "{worst} r/min, {rms} rad");

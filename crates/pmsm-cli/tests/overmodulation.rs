@@ -4,7 +4,7 @@
 
 use std::f64::consts::TAU;
 
-use pmsm_cli::commands::simulate::stats::window;
+use pmsm_cli::commands::simulate::stats::{max_speed_off, window};
 use pmsm_cli::commands::simulate::{Row, Run, build_drive, build_plant, run_scenario};
 use pmsm_core::{Abc, DriveInput, DriveState};
 
@@ -117,10 +117,7 @@ fn motor_c_near_six_step_holds() {
         .unwrap();
         no_fault(&run);
         let tail = window(&run.rows, 1.1, 1.2);
-        let swing = tail
-            .iter()
-            .map(|r| (r.speed_rpm - rpm).abs())
-            .fold(0.0, f64::max);
+        let swing = max_speed_off(&tail, rpm);
         let peak = tail
             .iter()
             .map(|r| r.i_dq_a[0].hypot(r.i_dq_a[1]))

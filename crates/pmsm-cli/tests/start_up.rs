@@ -4,7 +4,7 @@
 mod common;
 
 use common::scenario_text;
-use pmsm_cli::commands::simulate::stats::{first_fault, rms_angle};
+use pmsm_cli::commands::simulate::stats::{first_fault, max_speed_off, rms_angle};
 use pmsm_cli::commands::simulate::{Row, run_scenario};
 use pmsm_core::DriveState;
 
@@ -57,10 +57,7 @@ fn the_alignment_damps_a_heavy_rotors_swing() {
             first_fault(&rows).unwrap().fault()
         );
         let tail: Vec<&Row> = rows.iter().filter(|r| r.t_s > 1.4).collect();
-        let worst = tail
-            .iter()
-            .map(|r| (r.speed_rpm - 854.5).abs())
-            .fold(0.0, f64::max);
+        let worst = max_speed_off(&tail, 854.5);
         assert!(
             worst < 20.0,
             "from {theta0}°: speed off by {worst:.1} r/min"
@@ -125,10 +122,7 @@ fn a_back_emf_start_keeps_the_open_loops_direction() {
         panic!("{} at {:.4} s", r.fault(), r.t_s);
     }
     let tail: Vec<&Row> = rows.iter().filter(|r| r.t_s > 0.15).collect();
-    let speed = tail
-        .iter()
-        .map(|r| (r.speed_rpm - 300.0).abs())
-        .fold(0.0, f64::max);
+    let speed = max_speed_off(&tail, 300.0);
     let rms = rms_angle(&tail);
     println!(
         "AO start with the PWM delay: speed within {speed:.1} r/min of 300, angle {rms:.4} rad rms"
@@ -262,10 +256,7 @@ fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
         panic!("{} at {:.3} s", r.fault(), r.t_s);
     }
     let tail: Vec<&Row> = rows.iter().filter(|r| r.t_s > 1.0).collect();
-    let worst = tail
-        .iter()
-        .map(|r| (r.speed_rpm - 527.5).abs())
-        .fold(0.0, f64::max);
+    let worst = max_speed_off(&tail, 527.5);
     println!(
         "damped: speed within {worst:.2} r/min of 527.5, {:.4} rad rms",
         rms_angle(&tail)

@@ -19,6 +19,13 @@ pub fn max_angle(rows: &[&Row]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Largest |speed − `rpm`|, r/min (0 for no rows).
+pub fn max_speed_off(rows: &[&Row], rpm: f64) -> f64 {
+    rows.iter()
+        .map(|r| (r.speed_rpm - rpm).abs())
+        .fold(0.0, f64::max)
+}
+
 /// RMS angle error, rad (0 for no rows).
 pub fn rms_angle(rows: &[&Row]) -> f64 {
     (rows
