@@ -3,12 +3,13 @@
 //! Each direction is a [`Mailbox`]: one writer, one reader, the latest message wins. Messages
 //! are numbered 1, 2, …; message `n` is stored as 32-bit words in slot `n mod 2`. A counter
 //! says what the writer does: `2n` once message `n` is published, `2n + 1` while it writes
-//! message `n + 1` into the other slot. The reader loads the counter, copies the slot of the
-//! last message published (which the writer is not writing), and loads the counter again:
-//! the copy is whole unless the writer has since begun message `n + 2`, in the same slot
-//! (the counter then reads `2n + 3` or more), and the reader copies again. Only 32-bit atomic
-//! loads and stores: no compare-and-swap, which ARMv6-M (Cortex-M0/M0+) does not have, and no
-//! lock, so the interrupt never waits.
+//! message `n + 1` into the other slot. The reader loads the counter, reads the message from
+//! the slot of the last one published (which the writer is not writing), and loads the
+//! counter again: the message is whole unless the writer has since begun message `n + 2`, in
+//! the same slot (the counter then reads `2n + 3` or more), and the reader reads again. Only
+//! 32-bit atomic loads and stores: no compare-and-swap, which ARMv6-M (Cortex-M0/M0+) does
+//! not have, and no lock, so the interrupt never waits. A message's fields go straight
+//! between the slot and the value ([`Packer`], [`Unpacker`]), with no array of words between.
 //!
 //! | direction | writer | reader | how often |
 //! |---|---|---|---|
@@ -26,30 +27,32 @@ use core::sync::atomic::{AtomicU32, Ordering, fence};
 
 /// A value that travels as `W` 32-bit words.
 pub(crate) trait Message<const W: usize>: Sized {
-    /// The message as words.
-    fn to_words(&self) -> [u32; W];
-    /// The message of [`Message::to_words`]'s words.
-    fn from_words(w: &[u32; W]) -> Self;
+    /// Stores the message's words in `slot`, in order (through a [`Packer`] made here, so
+    /// that each word's place is known when compiled).
+    fn pack(&self, slot: &[AtomicU32; W]);
+    /// The message of [`Message::pack`]'s words in `slot` (through an [`Unpacker`]).
+    fn unpack(slot: &[AtomicU32; W]) -> Self;
 }
 
-/// Fills an array of words in order (a message's fields).
+/// Stores a message's fields in order straight into a mailbox's slot: no copy of the message
+/// as an array of words first (the window is 30 words, and the interrupt publishes it).
 pub(crate) struct Packer<'a, const N: usize> {
-    words: &'a mut [u32; N],
+    words: &'a [AtomicU32; N],
     at: usize,
 }
 
 impl<'a, const N: usize> Packer<'a, N> {
     /// From the first word of `words`.
     #[inline(always)]
-    pub fn new(words: &'a mut [u32; N]) -> Self {
+    pub fn new(words: &'a [AtomicU32; N]) -> Self {
         Self { words, at: 0 }
     }
 
     /// The next word (dropped past the end, which a message of `N` words never reaches).
     #[inline(always)]
     pub fn u32(&mut self, x: u32) {
-        if let Some(w) = self.words.get_mut(self.at) {
-            *w = x;
+        if let Some(w) = self.words.get(self.at) {
+            w.store(x, Ordering::Relaxed);
         }
         self.at += 1;
     }
@@ -73,23 +76,26 @@ impl<'a, const N: usize> Packer<'a, N> {
     }
 }
 
-/// Takes the words of an array in order.
+/// Loads a message's words in order straight from a mailbox's slot.
 pub(crate) struct Unpacker<'a, const N: usize> {
-    words: &'a [u32; N],
+    words: &'a [AtomicU32; N],
     at: usize,
 }
 
 impl<'a, const N: usize> Unpacker<'a, N> {
     /// From the first word of `words`.
     #[inline(always)]
-    pub fn new(words: &'a [u32; N]) -> Self {
+    pub fn new(words: &'a [AtomicU32; N]) -> Self {
         Self { words, at: 0 }
     }
 
     /// The next word (zero past the end).
     #[inline(always)]
     pub fn u32(&mut self) -> u32 {
-        let x = self.words.get(self.at).copied().unwrap_or(0);
+        let x = self
+            .words
+            .get(self.at)
+            .map_or(0, |w| w.load(Ordering::Relaxed));
         self.at += 1;
         x
     }
@@ -132,19 +138,12 @@ impl<const W: usize> Mailbox<W> {
     /// Publishes `m` (the one writer); returns its number.
     #[inline(always)]
     pub fn publish<M: Message<W>>(&self, m: &M) -> u32 {
-        self.publish_words(&m.to_words())
-    }
-
-    /// Publishes the words of a message (the one writer); returns its number.
-    fn publish_words(&self, words: &[u32; W]) -> u32 {
         let count = self.count.load(Ordering::Relaxed) & !1;
         let n = (count >> 1).wrapping_add(1);
         // Writing: a reader that sees this and then the slot's words retries.
         self.count.store(count | 1, Ordering::Relaxed);
         fence(Ordering::Release);
-        for (to, &x) in self.slot(n).iter().zip(words) {
-            to.store(x, Ordering::Relaxed);
-        }
+        m.pack(self.slot(n));
         // The words before the number that names them.
         fence(Ordering::Release);
         self.count.store(n << 1, Ordering::Relaxed);
@@ -157,35 +156,25 @@ impl<const W: usize> Mailbox<W> {
         self.count.load(Ordering::Relaxed) >> 1
     }
 
-    /// The latest message's words and number (one pass: see [`Mailbox::read_now`]).
-    fn read_words(&self) -> (u32, [u32; W]) {
-        let n = self.count.load(Ordering::Relaxed) >> 1;
-        fence(Ordering::Acquire);
-        let mut words = [0; W];
-        for (to, from) in words.iter_mut().zip(self.slot(n)) {
-            *to = from.load(Ordering::Relaxed);
-        }
-        (n, words)
-    }
-
     /// The latest message and its number, for a reader that the writer cannot preempt (the
     /// interrupt reading the task's mailboxes): one pass (the message being written, if the
     /// reader preempted its writer, is not the one read).
     #[inline(always)]
     pub fn read_now<M: Message<W>>(&self) -> (u32, M) {
-        let (n, words) = self.read_words();
-        (n, M::from_words(&words))
+        let n = self.count.load(Ordering::Relaxed) >> 1;
+        fence(Ordering::Acquire);
+        (n, M::unpack(self.slot(n)))
     }
 
     /// The latest message and its number, for a reader that the writer may preempt (the task
-    /// reading the interrupt's window): copied again if the writer began to overwrite it.
+    /// reading the interrupt's window): read again if the writer began to overwrite it.
     pub fn read<M: Message<W>>(&self) -> (u32, M) {
         loop {
-            let (n, words) = self.read_words();
+            let (n, m) = self.read_now();
             fence(Ordering::Acquire);
             // Message n + 2, in the same slot, begins at 2n + 3.
             if self.count.load(Ordering::Relaxed).wrapping_sub(n << 1) < 3 {
-                return (n, M::from_words(&words));
+                return (n, m);
             }
         }
     }
@@ -265,11 +254,14 @@ mod tests {
     struct Pair(u32, i32);
 
     impl Message<2> for Pair {
-        fn to_words(&self) -> [u32; 2] {
-            [self.0, self.1 as u32]
+        fn pack(&self, slot: &[AtomicU32; 2]) {
+            let w = &mut Packer::new(slot);
+            w.u32(self.0);
+            w.i32(self.1);
         }
-        fn from_words(w: &[u32; 2]) -> Self {
-            Pair(w[0], w[1] as i32)
+        fn unpack(slot: &[AtomicU32; 2]) -> Self {
+            let r = &mut Unpacker::new(slot);
+            Pair(r.u32(), r.i32())
         }
     }
 

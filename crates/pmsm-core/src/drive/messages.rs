@@ -17,6 +17,7 @@ use crate::frames::{Abc, AlphaBeta, Dq};
 use crate::ipd::IpdFault;
 use crate::num::Pu;
 use crate::observer::MrasModel;
+use core::sync::atomic::AtomicU32;
 
 /// What the interrupt side is doing, as the window reports it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -368,9 +369,8 @@ const TAGGED_WORDS: usize = 5;
 pub(crate) const COMMAND_WORDS: usize = 2 + TAGGED_WORDS + 2 + 2 + 2;
 
 impl Message<COMMAND_WORDS> for Command {
-    fn to_words(&self) -> [u32; COMMAND_WORDS] {
-        let mut words = [0; COMMAND_WORDS];
-        let w = &mut Packer::new(&mut words);
+    fn pack(&self, slot: &[AtomicU32; COMMAND_WORDS]) {
+        let w = &mut Packer::new(slot);
         w.u32(self.window);
         w.u32(self.epoch);
         self.mode.write(w);
@@ -380,11 +380,10 @@ impl Message<COMMAND_WORDS> for Command {
         w.bool(self.hold);
         w.u32(self.model);
         write_pu(w, self.health);
-        words
     }
 
-    fn from_words(words: &[u32; COMMAND_WORDS]) -> Self {
-        let r = &mut Unpacker::new(words);
+    fn unpack(slot: &[AtomicU32; COMMAND_WORDS]) -> Self {
+        let r = &mut Unpacker::new(slot);
         let window = r.u32();
         let epoch = r.u32();
         let mode = Mode::read(r);
@@ -407,9 +406,8 @@ impl Message<COMMAND_WORDS> for Command {
 pub(crate) const WINDOW_WORDS: usize = 2 + TAGGED_WORDS + 4 + 2 + 2 + 14 + 1 + 3;
 
 impl Message<WINDOW_WORDS> for Window {
-    fn to_words(&self) -> [u32; WINDOW_WORDS] {
-        let mut words = [0; WINDOW_WORDS];
-        let w = &mut Packer::new(&mut words);
+    fn pack(&self, slot: &[AtomicU32; WINDOW_WORDS]) {
+        let w = &mut Packer::new(slot);
         w.u32(self.epoch);
         w.u32(self.trips);
         self.status.write(w);
@@ -444,11 +442,10 @@ impl Message<WINDOW_WORDS> for Window {
         for p in self.power {
             w.u32(p);
         }
-        words
     }
 
-    fn from_words(words: &[u32; WINDOW_WORDS]) -> Self {
-        let r = &mut Unpacker::new(words);
+    fn unpack(slot: &[AtomicU32; WINDOW_WORDS]) -> Self {
+        let r = &mut Unpacker::new(slot);
         let epoch = r.u32();
         let trips = r.u32();
         let status = Status::read(r);
@@ -526,9 +523,8 @@ pub(crate) struct ModelUpdate {
 pub(crate) const MODEL_WORDS: usize = 1 + crate::observer::MRAS_MODEL_WORDS + 3;
 
 impl Message<MODEL_WORDS> for ModelUpdate {
-    fn to_words(&self) -> [u32; MODEL_WORDS] {
-        let mut words = [0; MODEL_WORDS];
-        let w = &mut Packer::new(&mut words);
+    fn pack(&self, slot: &[AtomicU32; MODEL_WORDS]) {
+        let w = &mut Packer::new(slot);
         w.bool(self.mras.is_some());
         match &self.mras {
             Some(m) => m.write_words(w),
@@ -541,11 +537,10 @@ impl Message<MODEL_WORDS> for ModelUpdate {
         write_pu(w, self.psi);
         w.i32(self.deadtime.0);
         w.i32(self.deadtime.1);
-        words
     }
 
-    fn from_words(words: &[u32; MODEL_WORDS]) -> Self {
-        let r = &mut Unpacker::new(words);
+    fn unpack(slot: &[AtomicU32; MODEL_WORDS]) -> Self {
+        let r = &mut Unpacker::new(slot);
         let some = r.bool();
         let m = MrasModel::read_words(r);
         Self {
