@@ -35,7 +35,7 @@ pub(crate) trait Message<const W: usize>: Sized {
 }
 
 /// Stores a message's fields in order straight into a mailbox's slot: no copy of the message
-/// as an array of words first (the window is 30 words, and the interrupt publishes it).
+/// as an array of words first (the window is 33 words, and the interrupt publishes it).
 pub(crate) struct Packer<'a, const N: usize> {
     words: &'a [AtomicU32; N],
     at: usize,
@@ -167,7 +167,9 @@ impl<const W: usize> Mailbox<W> {
     }
 
     /// The latest message and its number, for a reader that the writer may preempt (the task
-    /// reading the interrupt's window): read again if the writer began to overwrite it.
+    /// reading the interrupt's window): read again if the writer began to overwrite it. A
+    /// message read while overwritten is unpacked and dropped: unpacking takes any words (an
+    /// unknown tag reads as `Off`), so it cannot fail.
     pub fn read<M: Message<W>>(&self) -> (u32, M) {
         loop {
             let (n, m) = self.read_now();
