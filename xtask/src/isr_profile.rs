@@ -12,7 +12,8 @@
 //! part of the step; an instruction of an out-of-line helper that names none (the Cortex-M0's
 //! wide products) goes to the part of its call site, which the trace follows (a jump to a
 //! function's first address is a call, a landing after a call site its return). The sum over the parts is the step without the meter's overhead, so a
-//! little below `scripts/pil.sh`'s mean.
+//! little below `scripts/pil.sh`'s mean. The steps that end a task period (they run
+//! `DriveIsr::end_period`) are also counted apart from the others.
 
 use anyhow::{Context, Result, bail};
 use std::collections::{BTreeMap, HashMap};
@@ -131,6 +132,22 @@ fn section() -> Result<(String, Vec<(&'static str, Profile)>)> {
         columns[0].1.calls,
         columns[1].1.calls
     );
+    fn mean((n, k): (u64, u64)) -> f64 {
+        n as f64 / k.max(1) as f64
+    }
+    let (a, b) = (&columns[0].1, &columns[1].1);
+    s += &format!(
+        "By step: one in eight ends a task period and publishes the window there (the \
+         bars are on the worst case).\n\n| step | {} | {} |\n|---|--:|--:|\n\
+         | ends a task period, mean | {:.0} | {:.0} |\n\
+         | the others, mean | {:.0} | {:.0} |\n\n",
+        columns[0].0,
+        columns[1].0,
+        mean(a.period_end),
+        mean(b.period_end),
+        mean(a.others),
+        mean(b.others),
+    );
     Ok((s, columns))
 }
 
@@ -186,6 +203,10 @@ fn run(cmd: &mut Command) -> Result<()> {
 #[derive(Default)]
 struct Profile {
     calls: u64,
+    /// Instructions and calls of the steps that end a task period (they publish the window),
+    /// and of the others.
+    period_end: (u64, u64),
+    others: (u64, u64),
     parts: BTreeMap<&'static str, f64>,
     lines: BTreeMap<(&'static str, String), f64>,
 }
@@ -198,6 +219,9 @@ struct Symbols {
     begin: u32,
     end: u32,
     step: u32,
+    /// The end of a task period (`DriveIsr::end_period`): a step that runs it publishes the
+    /// window.
+    end_period: (u32, u32),
     /// The estimators' updates: a call that runs one is in the closed loop.
     updates: Vec<(u32, u32)>,
     /// Every function's first address: a jump there is a call.
@@ -213,6 +237,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
     let text = String::from_utf8_lossy(&out.stdout);
     let mut core = (u32::MAX, 0);
     let (mut meter, mut begin, mut end, mut step) = (None, None, None, None);
+    let mut end_period = None;
     let mut updates = Vec::new();
     let mut entries = std::collections::HashSet::new();
     for line in text.lines() {
@@ -243,6 +268,9 @@ fn symbols(elf: &Path) -> Result<Symbols> {
         if name.contains("8DriveIsr4step") {
             step = Some(a);
         }
+        if name.contains("10end_period") {
+            end_period = Some((a, a + n));
+        }
         if name.contains("Estimator$GT$6update") && !name.contains("AnyEstimator") {
             updates.push((a, a + n));
         }
@@ -254,6 +282,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
         begin: need(begin, "profile_begin")?,
         end: need(end, "profile_end")?,
         step: need(step, "DriveIsr::step")?,
+        end_period: end_period.context("no symbol for DriveIsr::end_period")?,
         updates,
         entries,
     })
@@ -300,8 +329,9 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
     let mut counts: HashMap<(u32, Option<u32>), u64> = HashMap::new();
     let mut call: HashMap<(u32, Option<u32>), u64> = HashMap::new();
     let mut sites = Sites::default();
-    let (mut window, mut inside, mut closed) = (false, false, false);
+    let (mut window, mut inside, mut closed, mut ends) = (false, false, false, false);
     let (mut calls, mut last) = (0u64, 0u32);
+    let (mut period_end, mut others) = ((0u64, 0u64), (0u64, 0u64));
     for line in log.split(b'\n') {
         let line = line?;
         let Some(pc) = trace_pc(&line) else {
@@ -315,6 +345,7 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
         if window && !inside && pc == sym.step {
             inside = true;
             closed = false;
+            ends = false;
             call.clear();
             sites = Sites::default();
             last = pc;
@@ -326,6 +357,9 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
             inside = false;
             if closed {
                 calls += 1;
+                let n: u64 = call.values().sum();
+                let kind = if ends { &mut period_end } else { &mut others };
+                *kind = (kind.0 + n, kind.1 + 1);
                 for (a, n) in call.drain() {
                     *counts.entry(a).or_default() += n;
                 }
@@ -335,6 +369,7 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
         sites.follow(pc, last, pc != sym.step && sym.entries.contains(&pc));
         last = pc;
         closed |= sym.updates.iter().any(|(a, b)| (*a..*b).contains(&pc));
+        ends |= (sym.end_period.0..sym.end_period.1).contains(&pc);
         *call.entry((pc, sites.innermost())).or_default() += 1;
     }
     let status = child.wait()?;
@@ -346,6 +381,8 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
     }
     let mut profile = Profile {
         calls,
+        period_end,
+        others,
         ..Profile::default()
     };
     let mut pcs: Vec<u32> = counts.keys().map(|k| k.0).collect();
