@@ -453,11 +453,9 @@ impl Monitor {
         // Loss of lock: at the limit, the estimate slowing against the loop's torque faster
         // than that torque accelerates the rotor, over 5 ms, while the estimator no longer
         // explains the currents. A rotor slows so only under a load of more than twice the
-        // drive's torque; an estimate that has left the rotor does it as the angle error
-        // passes a quarter turn (motor B's model with ψ +20 % in its ramp through a fifth of
-        // rated speed, where the current-model MRAS lags and slips). A healthy estimate that
-        // a model's error makes swing about the limit (ψ −20 %) passes, its figure low. The
-        // common case costs one branch.
+        // drive's torque; an estimate that has left the rotor does it as it slips. The health
+        // condition spares a healthy estimate that a model's error makes swing about the
+        // limit (docs/drive.md, "the estimate against the torque").
         if limited && s.running {
             let against = if s.iq_ref < Pu::ZERO {
                 step

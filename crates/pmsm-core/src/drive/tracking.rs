@@ -209,10 +209,8 @@ pub struct Tracker {
 
 /// The speed gate's hysteresis: frozen below [`TrackerDesign::min_speed_rad_s`], learning
 /// again only above it by this share. A speed held at the gate dithers across it, and every
-/// return to learning after a freeze comes with the covariance the freeze let grow: motor C
-/// held at 600 r/min, the gate's speed, took steps of 1 % from each of the speed's swings
-/// into the learning side, ran `ψ̂` 17 % low with an exact model and fell into a limit cycle
-/// of ±100 r/min at the current limit (docs/tracking.md).
+/// return to learning after a freeze comes with the covariance the freeze let grow, so each
+/// swing would teach a large step (docs/tracking.md, "Where it does not learn").
 const SPEED_HYSTERESIS: f32 = 0.125;
 
 /// One step of a first-order low-pass: `y + g (x − y)`.
@@ -449,7 +447,7 @@ impl Tracker {
             Some(Frozen::Settling)
         } else if self.slow {
             Some(Frozen::LowSpeed)
-        } else if residual > self.inv_ratio * self.psi0 * libm::fabsf(w_hat) {
+        } else if residual > self.inv_ratio * self.psi0 * speed {
             Some(Frozen::Inverter)
         } else if input.saturated {
             Some(Frozen::Saturated)
