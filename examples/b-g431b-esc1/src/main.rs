@@ -1,6 +1,7 @@
 //! Sensorless PMSM drive on ST's B-G431B-ESC1, as an RTIC app: 170 MHz, TIM1 20 kHz
-//! centre-aligned PWM with 0.5 µs dead time, injected ADC conversions at the PWM centre;
-//! initial position by voltage pulses, current-model MRAS; with the feature `commissioning`,
+//! centre-aligned PWM with 0.5 µs dead time, injected ADC conversions at the PWM centre; the
+//! estimator the defaults choose for the motor of `motor.rs` (the kit's surface motor: the
+//! alignment, an open-loop start and the NLO); with the feature `commissioning`,
 //! a mode that identifies the motor connected (`pmsm_core::Identify`,
 //! `docs/identification.md`; README.md says why it is not in the default image).
 //!
@@ -47,15 +48,15 @@ fn halt(why: &str) -> ! {
 }
 
 // The one estimator built in (Cargo.toml: pmsm-core's feature `nlo`) is the one the defaults
-// choose for the motor of motor.rs, a surface motor (`EstimatorKind::for_motor`). An interior
-// motor gets the current-model MRAS: build pmsm-core with `mras-current` instead (both do
-// not fit the 64 KiB image). `MotorParams::saliency` written out: a const check cannot call
-// it.
+// choose for the motor of motor.rs, a surface motor (`EstimatorKind::for_motor`), started by
+// the alignment (the image has no initial position detection). An interior motor gets the
+// current-model MRAS and the detection: build pmsm-core with `mras-current` and `ipd` instead
+// (README.md, "Size"). `MotorParams::saliency` written out: a const check cannot call it.
 const _: () = assert!(
     motor::LQ_H - motor::LD_H < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H)
         && motor::LD_H - motor::LQ_H
             < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),
-    "motor.rs holds an interior motor: build pmsm-core with feature `mras-current`, not `nlo`"
+    "motor.rs holds an interior motor: build pmsm-core with features `mras-current` and `ipd`, not `nlo`"
 );
 
 /// The drive's options on this board: defaults, and the compensation of TIM1's compare

@@ -23,6 +23,7 @@ use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_ran
 use crate::svpwm::SvpwmConfig;
 use crate::units::PerUnit;
 
+mod features;
 mod schedule;
 
 /// The fixed-point configuration of a drive: the interrupt side's part, the task's, and what
@@ -59,6 +60,7 @@ pub(crate) struct IsrConfig {
     /// [`StartupMode::Auto`] chose the detection: one that finds the axis but not the
     /// magnet's polarity ([`IpdFault::NoPolarity`](crate::IpdFault)) waits for the task, which
     /// falls back to the alignment, instead of tripping.
+    #[cfg_attr(not(feature = "ipd"), allow(dead_code))] // the detection's step reads it
     pub ipd_fallback: bool,
     /// The closed current loop's lag as a shift, `k = round(log2(1/(ω_c T_s)))` (0..=20): the
     /// dead-time compensation's signs follow the q reference through it (the current the loop
@@ -228,24 +230,7 @@ impl DriveConfig {
         // Built first: a fallible call late in the literal below makes the compiler keep
         // every field before it in temporaries (kilobytes of stack on ARMv6-M).
         let deadtime = DeadTimeConfig::new(inverter, &base, design.deadtime)?;
-        #[cfg(not(feature = "tracking"))]
-        if design.tracking {
-            return Err(ParamError {
-                key: "tracking",
-                reason: ParamReason::Inconsistent("a build with the tracker (feature tracking)"),
-            }
-            .into());
-        }
-        #[cfg(not(feature = "distortion-learner"))]
-        if design.deadtime_learning {
-            return Err(ParamError {
-                key: "deadtime_learning",
-                reason: ParamReason::Inconsistent(
-                    "a build with the learner (feature distortion-learner)",
-                ),
-            }
-            .into());
-        }
+        features::check(&design)?;
         #[cfg(feature = "injection")]
         let (injection, injection_figures, injection_declined) = match design.injection.map(|d| {
             let c = crate::observer::InjectionConfig::new(
@@ -390,6 +375,8 @@ impl DriveConfig {
         })?;
         // Only an IPD start-up needs pulses this motor and bus can drive.
         let ipd = match design.startup {
+            // (Refused above in a build without it.)
+            #[cfg(feature = "ipd")]
             StartupMode::Ipd => IpdConfig::new(motor, &base, design.ipd)?,
             _ => IpdConfig::unused(design.ipd),
         };

@@ -34,9 +34,11 @@
 //! # Update
 //!
 //! At the end of each batch the scale moves by [`DistortionDesign::gain`] times `ê` over the
-//! told `V_dead`, within [`DistortionDesign::scale_range`], and is written to the drive when
-//! it moved by more than [`DistortionDesign::write_threshold`]; one batch moves it by at most
-//! [`DistortionDesign::max_step`]. The batch is thrown away when the speed or the current
+//! told `V_dead`, within [`DistortionDesign::scale_range`], once the batch before agrees; one
+//! batch moves it by at most [`DistortionDesign::max_step`]. It is written to the drive when
+//! it moved by more than [`DistortionDesign::write_threshold`] and lies beyond
+//! [`DistortionDesign::dead_band`] of the scale the drive had (told, or calibrated at
+//! standstill); within that band the drive keeps its own. The batch is thrown away when the speed or the current
 //! reference's length moved by more than [`DistortionDesign::max_speed_change`] of its mean
 //! in it.
 //! Gates (the sample is skipped): outside `Run`, [`DistortionDesign::settle_s`] after
@@ -47,14 +49,20 @@
 //!
 //! # Cost
 //!
-//! `f32`, about 70 operations per [`DistortionLearner::update`] (one sin/cos), a few more at
-//! the end of a batch.
+//! Integers while it listens (two sin/cos from the table, three Park rotations, a dozen
+//! products: no software `f32` on a Cortex-M0); a batch's end, about 90 `f32` operations, over
+//! the five updates after it (`batch`).
 
-use super::tracking::{pu, sin_cos_f32};
+mod batch;
+
+use super::tracking::pu;
 use super::{Drive, DriveConfig, TrackerInput};
+use crate::angle::Angle;
 use crate::error::ConfigError;
-use crate::num::{Pu, pu_from_f64};
+use crate::frames::{AlphaBeta, Dq, inverse_park, park};
+use crate::num::{PU_FRAC, Pu};
 use crate::params::{MotorParams, ParamError, ParamReason, in_range};
+use batch::{Batch, End, HARMONIC_FRAC, Model, SIGNAL_FRAC, within};
 
 /// How the learner is designed, SI units; [`DistortionDesign::for_drive`] gives the defaults.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -81,6 +89,10 @@ pub struct DistortionDesign {
     pub scale_range: (f64, f64),
     /// Smallest change of the scale written to the drive.
     pub write_threshold: f64,
+    /// A scale within this of the one the drive had (told, or calibrated at standstill) is
+    /// not written: on an inverter it was told right the learner reads a few percent off one
+    /// (docs/distortion.md, "What it reads on an inverter it was told right").
+    pub dead_band: f64,
     /// The compensation's `V_dead` at the nominal bus, V (what the drive was told).
     pub v_dead_v: f64,
     /// The compensation's current band, A.
@@ -91,8 +103,9 @@ impl DistortionDesign {
     /// For `config`'s dead-time compensation: an update every task period, batches of
     /// 0.2 s, from three electrical turns per batch up, 50 ms after entering `Run`, the
     /// current beyond ten bands, the speed and the current reference within 10 %, three
-    /// quarters of the error per batch and at most a quarter, the scale within [0.25, 4], written when it
-    /// moved by 3 % (the standstill calibration's dead band).
+    /// quarters of the error per batch and at most a quarter, the scale within [0.25, 4],
+    /// written when it moved by 3 % (the standstill calibration's dead band) and lies 15 %
+    /// or more from the drive's own.
     pub fn for_drive(config: &DriveConfig) -> Self {
         let batch_s = 0.2;
         let dt = config.deadtime();
@@ -107,6 +120,7 @@ impl DistortionDesign {
             gain: 0.75,
             scale_range: (0.25, 4.0),
             write_threshold: 0.03,
+            dead_band: 0.15,
             v_dead_v: if config.deadtime_compensation() {
                 dt.v_dead_nominal_v
             } else {
@@ -151,128 +165,69 @@ pub struct DistortionStatus {
     pub scale: f32,
 }
 
-/// The sums of one batch: for each of `u_d, u_q, i_d, i_q, p_d, p_q`, its sum and its sums
-/// against `cos 6θ`, `sin 6θ`.
-#[derive(Clone, Copy, Debug, Default)]
-struct Batch {
-    n: u32,
-    sum: [f32; 6],
-    cos: [f32; 6],
-    sin: [f32; 6],
-    sum_c: f32,
-    sum_s: f32,
-    sum_w: f32,
-    w_min: f32,
-    w_max: f32,
-    /// The current reference's length summed over the batch's first and second halves (its
-    /// ripple averages out, a step does not).
-    sum_i: [f32; 2],
-    half: [u32; 2],
-}
-
-/// A complex number, `(re, im)`.
-type C = (f32, f32);
-
-fn mul(a: C, b: C) -> C {
-    (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0)
-}
-
-impl Batch {
-    fn add(&mut self, x: &[f32; 6], c6: f32, s6: f32, w: f32, i_ref: f32, second: bool) {
-        if self.n == 0 {
-            (self.w_min, self.w_max) = (w, w);
-        }
-        let k = usize::from(second);
-        if let (Some(sum), Some(half)) = (self.sum_i.get_mut(k), self.half.get_mut(k)) {
-            *sum += i_ref;
-            *half += 1;
-        }
-        self.n += 1;
-        let sums = self.sum.iter_mut().zip(&mut self.cos).zip(&mut self.sin);
-        for (((sum, cos), sin), &x) in sums.zip(x) {
-            *sum += x;
-            *cos += x * c6;
-            *sin += x * s6;
-        }
-        self.sum_c += c6;
-        self.sum_s += s6;
-        self.sum_w += w;
-        self.w_min = self.w_min.min(w);
-        self.w_max = self.w_max.max(w);
-    }
-
-    /// The signals' phasors at `6θ` (`x ≈ mean + Re(X e^{j6θ})`), their means removed.
-    fn phasors(&self) -> [C; 6] {
-        let n = self.n as f32;
-        let mut out = [(0.0, 0.0); 6];
-        let sums = self.sum.iter().zip(&self.cos).zip(&self.sin);
-        for (o, ((&sum, &cos), &sin)) in out.iter_mut().zip(sums) {
-            let mean = sum / n;
-            *o = (
-                2.0 * (cos - mean * self.sum_c) / n,
-                -2.0 * (sin - mean * self.sum_s) / n,
-            );
-        }
-        out
-    }
-}
-
-/// The least-squares `e` of one batch: the pattern's phasors `p` against the residual of the
-/// voltage's `u` after the motor's impedance at six times the speed `w` takes the current's
-/// `i` (all per unit, `r`, `ld`, `lq` the model's): docs/distortion.md.
-fn batch_error(u: [C; 2], i: [C; 2], p: [C; 2], w: f32, r: f32, ld: f32, lq: f32) -> Option<f32> {
-    let zd = (r, 6.0 * w * ld);
-    let zq = (r, 6.0 * w * lq);
-    let rd = mul(zd, i[0]);
-    let rq = mul(zq, i[1]);
-    let res = [
-        (
-            u[0].0 - rd.0 + w * lq * i[1].0,
-            u[0].1 - rd.1 + w * lq * i[1].1,
-        ),
-        (
-            u[1].0 - rq.0 - w * ld * i[0].0,
-            u[1].1 - rq.1 - w * ld * i[0].1,
-        ),
-    ];
-    let num = p[0].0 * res[0].0 + p[0].1 * res[0].1 + p[1].0 * res[1].0 + p[1].1 * res[1].1;
-    let den = p[0].0 * p[0].0 + p[0].1 * p[0].1 + p[1].0 * p[1].0 + p[1].1 * p[1].1;
-    (den > 0.0).then(|| num / den)
-}
-
-/// The learner: design in per unit, a batch's sums and the scale (`f32`).
+/// The learner: design in per unit, a batch's sums (integers) and the scale (`f32`).
 #[derive(Clone, Copy, Debug)]
 pub struct DistortionLearner {
-    design: DistortionDesign,
-    r: f32,
-    ld: f32,
-    lq: f32,
-    /// Told `V_dead` per unit; the band per unit; electrical angle per update per unit speed.
-    v_dead: f32,
-    band: f32,
-    min_speed: f32,
-    max_speed: f32,
+    /// The design's gates and steps that the updates read, as `f32` (the `f64` design is not
+    /// kept: the learner's state is part of the task's).
+    max_speed_change: f32,
+    max_step: f32,
+    scale_range: (f32, f32),
+    write_threshold: f32,
+    dead_band: f32,
+    model: Model,
+    /// The scale's step per unit of `ê` (the gain over the told `V_dead` per unit), volts per
+    /// unit of voltage.
+    gain_per_pu: f32,
+    volts_per_pu: f32,
+    /// `2²⁰` over the band per unit (at most 2⁴⁰).
+    inv_band_q20: i64,
+    /// The square of the current below which it does not listen, in Q12 per unit squared.
+    min_current_sq: i64,
+    /// The speed's range where it listens, Q8.24 bits.
+    min_speed: i32,
+    max_speed: i32,
     batch_updates: u32,
     settle_updates: u32,
     run_updates: u32,
     batch: Batch,
-    /// The scale last written (or read from the drive); the one held is the status's.
+    /// The scale last written (or read from the drive); the one held is the status's; the
+    /// drive's own, which readings within the dead band leave in place.
     written: f32,
+    own: f32,
+    /// The last used batch's `ê` per unit, zero when none since the scale came from the drive:
+    /// a batch moves the scale only when its predecessor agrees.
+    last_error: f32,
     status: DistortionStatus,
 }
 
 /// The Clarke transform of the phase currents' signs (amplitude-invariant, length 4/3 between
-/// sector steps), the sign linear within `band` as the compensation's is, from the current
-/// `(i_α, i_β)`.
-fn sign_pattern(ia: f32, ib: f32, band: f32) -> (f32, f32) {
-    const SQRT_3: f32 = 1.732_050_8;
-    let h = 0.5 * SQRT_3;
-    let sg = |x: f32| (x / band).clamp(-1.0, 1.0);
-    let (sa, sb, sc) = (sg(ia), sg(-0.5 * ia + h * ib), sg(-0.5 * ia - h * ib));
+/// sector steps), in Q12, each sign linear within the band as the compensation's is, from the
+/// current `i` (αβ, per unit); `inv_band_q20` is `2²⁰/band` (at most 2⁴⁰: each product below
+/// 2⁶¹).
+fn sign_pattern(i: AlphaBeta, inv_band_q20: i64) -> (i32, i32) {
+    const ONE: i64 = 1 << SIGNAL_FRAC;
+    let sg = |x: i64| (((x >> 12) * inv_band_q20) >> 20).clamp(-ONE, ONE);
+    let (a, b) = (i64::from(i.alpha.to_bits()), i64::from(i.beta.to_bits()));
+    // The phases b and c: −a/2 ± (√3/2) β (56756/2¹⁶ = √3/2 to 10⁻⁵).
+    let h = (b * 56_756) >> 16;
+    let (sa, sb, sc) = (sg(a), sg(-(a >> 1) + h), sg(-(a >> 1) - h));
+    // (2 s_a − s_b − s_c)/3 and (s_b − s_c)/√3 (21845 and 37837 over 2¹⁶).
     (
-        (2.0 / 3.0) * (sa - 0.5 * (sb + sc)),
-        (sb - sc) * (1.0 / SQRT_3),
+        (((2 * sa - sb - sc) * 21_845) >> 16) as i32,
+        (((sb - sc) * 37_837) >> 16) as i32,
     )
+}
+
+/// `|x|` of a current in Q12 per unit, to 7 %: the largest component and 3/8 of the other
+/// (a gate's length, without a square root).
+fn length_q12(x: Dq) -> i32 {
+    let (a, b) = (
+        (x.d.to_bits() >> SIGNAL_FRAC).saturating_abs(),
+        (x.q.to_bits() >> SIGNAL_FRAC).saturating_abs(),
+    );
+    let (hi, lo) = if a > b { (a, b) } else { (b, a) };
+    hi + ((3 * lo) >> 3)
 }
 
 impl DistortionLearner {
@@ -315,40 +270,68 @@ impl DistortionLearner {
         in_range("distortion.scale_range.0", d.scale_range.0, 0.0, 1.0)?;
         in_range("distortion.scale_range.1", d.scale_range.1, 1.0, 4.0)?;
         in_range("distortion.write_threshold", d.write_threshold, 0.0, 1.0)?;
+        in_range("distortion.dead_band", d.dead_band, 0.0, 1.0)?;
         in_range("distortion.band_a", d.band_a, 1e-9, 1e6)?;
-        if d.v_dead_v.is_nan() || d.v_dead_v <= 0.0 {
-            return Err(ParamError {
+        Self::build(motor, config, design).ok_or(
+            ParamError {
                 key: "distortion.v_dead_v",
                 reason: ParamReason::NotPositive,
             }
-            .into());
+            .into(),
+        )
+    }
+
+    /// [`DistortionLearner::new`] without the checks of the design's ranges: for the drive's
+    /// own design ([`DistortionDesign::for_drive`] of a configuration that was checked), so
+    /// that a firmware links no check of keys it never sets. `None` when the compensation is
+    /// off (`v_dead_v` not positive: nothing to scale).
+    pub(crate) fn build(
+        motor: &MotorParams,
+        config: &DriveConfig,
+        design: DistortionDesign,
+    ) -> Option<Self> {
+        let d = design;
+        if d.v_dead_v.is_nan() || d.v_dead_v <= 0.0 {
+            return None;
         }
+        let base = &config.base;
+        let dt = d.interval_samples as f64 * base.sample_s;
         let turn = base.omega_e_rad_s * dt;
-        Ok(Self {
-            design,
-            r: (motor.rs_ohm / base.impedance_ohm) as f32,
-            ld: (motor.ld_h / base.inductance_h) as f32,
-            lq: (motor.lq_h / base.inductance_h) as f32,
-            v_dead: (d.v_dead_v / base.voltage_v) as f32,
-            band: (d.band_a / base.current_a) as f32,
-            min_speed: (d.min_speed_rad_s / base.omega_e_rad_s) as f32,
+        Some(Self {
+            max_speed_change: d.max_speed_change as f32,
+            max_step: d.max_step as f32,
+            scale_range: (d.scale_range.0 as f32, d.scale_range.1 as f32),
+            write_threshold: d.write_threshold as f32,
+            dead_band: d.dead_band as f32,
+            model: Model {
+                r: (motor.rs_ohm / base.impedance_ohm) as f32,
+                ld: (motor.ld_h / base.inductance_h) as f32,
+                lq: (motor.lq_h / base.inductance_h) as f32,
+            },
+            gain_per_pu: (d.gain * base.voltage_v / d.v_dead_v) as f32,
+            volts_per_pu: base.voltage_v as f32,
+            inv_band_q20: ((1u64 << 20) as f64 * base.current_a / d.band_a).min((1u64 << 40) as f64)
+                as i64,
+            min_current_sq: {
+                let i = d.min_current_bands * d.band_a / base.current_a * (1 << SIGNAL_FRAC) as f64;
+                (i * i) as i64
+            },
+            min_speed: crate::num::pu_from_f64(d.min_speed_rad_s / base.omega_e_rad_s).to_bits(),
             // The sixth harmonic turns at most a quarter turn per update.
-            max_speed: (core::f64::consts::FRAC_PI_2 / (6.0 * turn)) as f32,
+            max_speed: crate::num::pu_from_f64(core::f64::consts::FRAC_PI_2 / (6.0 * turn))
+                .to_bits(),
             batch_updates: libm::ceil(d.batch_s / dt) as u32,
             settle_updates: libm::ceil(d.settle_s / dt) as u32,
             run_updates: 0,
             batch: Batch::default(),
             written: 1.0,
+            own: 1.0,
+            last_error: 0.0,
             status: DistortionStatus {
                 scale: 1.0,
                 ..DistortionStatus::default()
             },
         })
-    }
-
-    /// The design.
-    pub fn design(&self) -> &DistortionDesign {
-        &self.design
     }
 
     /// The status of the last update.
@@ -362,18 +345,44 @@ impl DistortionLearner {
     pub fn update(&mut self, input: &TrackerInput, scale: Pu) -> Option<Pu> {
         let drive_scale = pu(scale);
         if libm::fabsf(drive_scale - self.written) > 1e-6 {
-            (self.status.scale, self.written) = (drive_scale, drive_scale);
+            (self.status.scale, self.written, self.own) = (drive_scale, drive_scale, drive_scale);
+            self.last_error = 0.0;
         }
-        self.listen(input);
         if self.batch.n < self.batch_updates {
+            self.listen(input);
             return None;
         }
-        self.finish_batch();
-        let scale = self.status.scale;
+        // A full batch ends over the next updates, one stage each (`batch`), which do not
+        // listen.
+        self.status.listening = false;
+        let e = match self.batch.end_stage(self.max_speed_change, &self.model) {
+            End::Pending => return None,
+            End::Moved => {
+                self.status.discarded = self.status.discarded.saturating_add(1);
+                self.batch = Batch::default();
+                return None;
+            }
+            End::NoSolution => {
+                self.batch = Batch::default();
+                return None;
+            }
+            End::Error(e) => e,
+        };
+        self.batch = Batch::default();
+        self.take(e);
+        let learnt = self.status.scale;
+        let scale = if libm::fabsf(learnt - self.own) < self.dead_band {
+            self.own
+        } else {
+            learnt
+        };
         let step = libm::fabsf(scale - self.written);
-        if step > self.design.write_threshold as f32 {
+        if step > self.write_threshold {
             self.written = scale;
-            return Some(pu_from_f64(f64::from(scale)));
+            // Within the scale's range [0, 4]: the bits fit, rounded.
+            return Some(Pu::from_bits(
+                (scale * (1u32 << PU_FRAC) as f32 + 0.5) as i32,
+            ));
         }
         None
     }
@@ -396,14 +405,15 @@ impl DistortionLearner {
             return;
         }
         self.run_updates = self.run_updates.saturating_add(1);
-        let w = pu(input.omega);
-        let (id, iq) = (pu(input.i_dq.d), pu(input.i_dq.q));
+        let w = input.omega.to_bits();
+        let q12 = |x: i32| x >> SIGNAL_FRAC;
+        let (id, iq) = (q12(input.i_dq.d.to_bits()), q12(input.i_dq.q.to_bits()));
+        let current_sq = i64::from(id) * i64::from(id) + i64::from(iq) * i64::from(iq);
         let frozen = if self.run_updates <= self.settle_updates {
             Some(DistortionFrozen::Settling)
-        } else if !(self.min_speed..=self.max_speed).contains(&libm::fabsf(w)) {
+        } else if !(self.min_speed..=self.max_speed).contains(&w.saturating_abs()) {
             Some(DistortionFrozen::Speed)
-        } else if libm::sqrtf(id * id + iq * iq) < self.design.min_current_bands as f32 * self.band
-        {
+        } else if current_sq < self.min_current_sq {
             Some(DistortionFrozen::LowCurrent)
         } else if input.saturated {
             Some(DistortionFrozen::Saturated)
@@ -414,52 +424,63 @@ impl DistortionLearner {
             self.status.frozen = f;
             return;
         }
-        let (s, c) = sin_cos_f32(input.theta);
-        // cos 6θ, sin 6θ by three complex products.
-        let z2 = mul((c, s), (c, s));
-        let z3 = mul(z2, (c, s));
-        let z6 = mul(z3, z3);
-        let (ua, ub) = (pu(input.v.alpha), pu(input.v.beta));
-        let (ud, uq) = (ua * c + ub * s, ub * c - ua * s);
-        let (ia, ib) = (id * c - iq * s, id * s + iq * c);
-        let (pa, pb) = sign_pattern(ia, ib, self.band);
-        let (pd, pq) = (pa * c + pb * s, pb * c - pa * s);
-        let (rd, rq) = (pu(input.i_ref.d), pu(input.i_ref.q));
-        let i_ref = libm::sqrtf(rd * rd + rq * rq);
+        // Integers only (module docs, "Cost"): the voltage, the current and the sign pattern
+        // in the estimated frame, in Q12; cos 6θ, sin 6θ in Q11 from the table at 6θ.
+        let sc = input.theta.sin_cos();
+        let sc6 = Angle(input.theta.0.wrapping_mul(6)).sin_cos();
+        let u = park(input.v, sc);
+        let (pa, pb) = sign_pattern(inverse_park(input.i_dq, sc), self.inv_band_q20);
+        // Park's rotation is linear: the pattern's Q12 through it as bits.
+        let p = park(
+            AlphaBeta {
+                alpha: Pu::from_bits(pa),
+                beta: Pu::from_bits(pb),
+            },
+            sc,
+        );
+        let x = [
+            q12(u.d.to_bits()),
+            q12(u.q.to_bits()),
+            id,
+            iq,
+            p.d.to_bits(),
+            p.q.to_bits(),
+        ];
+        let h = |x: crate::num::Unit| x.to_bits() >> (crate::num::UNIT_FRAC - HARMONIC_FRAC);
         let second = 2 * self.batch.n >= self.batch_updates;
-        self.batch
-            .add(&[ud, uq, id, iq, pd, pq], z6.0, z6.1, w, i_ref, second);
+        self.batch.add(
+            &x,
+            h(sc6.cos),
+            h(sc6.sin),
+            w,
+            length_q12(input.i_ref),
+            second,
+        );
         self.status.listening = true;
     }
 
-    /// The batch's error, the scale's step, a fresh batch.
-    fn finish_batch(&mut self) {
-        let b = self.batch;
-        self.batch = Batch::default();
-        let n = b.n as f32;
-        let w = b.sum_w / n;
-        let change = self.design.max_speed_change as f32;
-        let [a, c] = b.sum_i;
-        let [na, nc] = b.half;
-        let (ia, ic) = (a / na.max(1) as f32, c / nc.max(1) as f32);
-        if b.w_max - b.w_min > change * libm::fabsf(w)
-            || libm::fabsf(ic - ia) > change * 0.5 * (ia + ic)
-        {
-            self.status.discarded = self.status.discarded.saturating_add(1);
+    /// A batch's `ê` (per unit) taken: the scale's step.
+    fn take(&mut self, e: f32) {
+        self.status.batches = self.status.batches.saturating_add(1);
+        self.status.error_v = e * self.volts_per_pu;
+        // Two batches in a row must agree, and the smaller of the two is taken: a transient
+        // that one batch mistook for a distortion (a load step at the current limit) does not
+        // move the scale; a distortion shows in every batch.
+        let last = core::mem::replace(&mut self.last_error, e);
+        if last * e <= 0.0 {
             return;
         }
-        let [ud, uq, id, iq, pd, pq] = b.phasors();
-        let Some(e) = batch_error([ud, uq], [id, iq], [pd, pq], w, self.r, self.ld, self.lq) else {
-            return;
+        let e = if libm::fabsf(e) < libm::fabsf(last) {
+            e
+        } else {
+            last
         };
-        let (lo, hi) = self.design.scale_range;
-        let max = self.design.max_step as f32;
-        let step = (self.design.gain as f32 * e / self.v_dead)
-            .max(-max)
-            .min(max);
-        self.status.scale = (self.status.scale + step).max(lo as f32).min(hi as f32);
-        self.status.batches = self.status.batches.saturating_add(1);
-        self.status.error_v = e / self.v_dead * self.design.v_dead_v as f32;
+        let (lo, hi) = self.scale_range;
+        let max = self.max_step;
+        let step = within(self.gain_per_pu * e, -max, max);
+        // From the scale in use, against which `ê` was measured: a reading left unwritten
+        // (within the dead band) is not added up batch after batch.
+        self.status.scale = within(self.written + step, lo, hi);
     }
 }
 

@@ -46,6 +46,7 @@ enum Phase {
     Ipd(Option<Angle>),
     /// The detection found the axis, not the polarity, and the start may fall back to the
     /// alignment (`IsrConfig::ipd_fallback`): the zero vector until the task says what next.
+    #[cfg_attr(not(feature = "ipd"), allow(dead_code))] // entered by the detection's step
     IpdNoPolarity(IpdFault),
     Align,
     Calibrate(Angle),
@@ -289,7 +290,11 @@ impl DriveIsr {
                 self.estimate(i);
                 self.open_loop_step()
             }
+            #[cfg(feature = "ipd")]
             Phase::Ipd(None) => return self.ipd_step(i, input.vdc),
+            // Never entered: `DriveConfig::new` refuses the detection in a build without it.
+            #[cfg(not(feature = "ipd"))]
+            Phase::Ipd(None) => return OFF,
             Phase::Ipd(Some(_)) | Phase::IpdNoPolarity(_) => {
                 // The detection is done: the zero vector until the task says what next.
                 self.v_est = AlphaBeta::default();
@@ -444,6 +449,7 @@ impl DriveIsr {
     }
 
     /// One sample of the initial position detection, which drives the PWM itself.
+    #[cfg(feature = "ipd")]
     #[inline(always)]
     fn ipd_step(&mut self, i: AlphaBeta, vdc: Pu) -> DriveOutput {
         let out = self.ipd.step(i, vdc);

@@ -76,7 +76,7 @@ pub fn build_drive(sc: &Scenario) -> Result<DriveSetup> {
         Tracker::new(&model, &base, TrackerDesign::for_drive(&config))
             .map_err(|e| anyhow!("{shown}: {e}"))?;
     }
-    if config.design.deadtime_learning {
+    if config.design.deadtime_learning && config.deadtime_compensation() {
         DistortionLearner::new(&model, &config, DistortionDesign::for_drive(&config))
             .map_err(|e| anyhow!("{shown}: {e}"))?;
     }

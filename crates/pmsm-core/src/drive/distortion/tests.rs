@@ -4,10 +4,12 @@
 
 extern crate std;
 
+use super::batch::END_STAGES as END;
 use super::*;
 use crate::angle::Angle;
 use crate::fixtures::{inverter_b, motor_b};
 use crate::frames::{AlphaBeta, Dq};
+use crate::num::pu_from_f64;
 use crate::units::PerUnit;
 use std::println;
 use std::vec::Vec;
@@ -146,13 +148,18 @@ fn drive_config() -> (MotorParams, crate::drive::DriveConfig) {
     (m, config)
 }
 
-fn learner(d: impl FnOnce(&mut DistortionDesign)) -> (DistortionLearner, PerUnit) {
+/// The learner of motor B's drive with the design `d` makes of the default, its design and
+/// the bases.
+fn learner(
+    d: impl FnOnce(&mut DistortionDesign),
+) -> (DistortionLearner, DistortionDesign, PerUnit) {
     let (m, config) = drive_config();
     let mut design = DistortionDesign::for_drive(&config);
     design.settle_s = 0.0;
     d(&mut design);
     (
         DistortionLearner::new(&m, &config, design).unwrap(),
+        design,
         config.base,
     )
 }
@@ -177,32 +184,39 @@ fn speed_800_rpm(base: &PerUnit) -> f64 {
     800.0 / 60.0 * core::f64::consts::TAU * 3.0 / base.omega_e_rad_s
 }
 
-/// A residual of 3 V (a fifth of motor B's told `V_dead`) at 800 r/min under load, the
+/// A residual of 4 V (a quarter of motor B's told `V_dead`) at 800 r/min under load, the
 /// ripple shared between the voltage and a current ripple of 0.02 pu: the learner's `ê`
-/// within 2 % of the f64 reference's on the same samples and within 5 % of the truth; its
-/// scale step the gain's share of it.
+/// within 2 % of the f64 reference's on the same samples and within 5 % of the truth; the
+/// scale moves at the second batch, which confirms the first, by the gain's share of it.
 #[test]
 fn the_residual_is_measured_at_speed_and_matches_the_reference() {
-    let (mut l, base) = learner(|_| {});
+    let (mut l, design, base) = learner(|_| {});
     let w = speed_800_rpm(&base);
-    let e = 3.0 / base.voltage_v;
+    let e = 4.0 / base.voltage_v;
     let n = l.batch_updates as usize;
-    let samples = steady(w, [0.0, 0.8], [(0.01, -0.005), (0.02, 0.01)], e, n);
+    // Each batch ends over the updates after its last sample.
+    let samples = steady(
+        w,
+        [0.0, 0.8],
+        [(0.01, -0.005), (0.02, 0.01)],
+        e,
+        2 * (n + END),
+    );
     let band = 0.19 / base.current_a;
-    let want = reference_error(&samples, w, band);
+    let want = reference_error(&samples[n + END..2 * n + END], w, band);
     let written = feed(&mut l, &samples, w);
     let got = f64::from(l.status().error_v) / base.voltage_v;
     println!(
-        "ê {:.4} V, reference {:.4} V, true 3 V; written {written:?}",
+        "ê {:.4} V, reference {:.4} V, true 4 V; written {written:?}",
         got * base.voltage_v,
         want * base.voltage_v
     );
-    assert_eq!(l.status().batches, 1);
+    assert_eq!(l.status().batches, 2);
     assert!((got - want).abs() <= 0.02 * want.abs(), "{got} vs {want}");
     assert!((want - e).abs() <= 0.05 * e, "{want} vs {e}");
     // The gain times the error, over the told V_dead (15.1 V), in one write.
-    let v_dead = l.design().v_dead_v;
-    let step = l.design().gain * got * base.voltage_v / v_dead;
+    let v_dead = design.v_dead_v;
+    let step = design.gain * got * base.voltage_v / v_dead;
     assert_eq!(written.len(), 1);
     assert!(
         (written[0] - 1.0 - step).abs() < 1e-3,
@@ -215,10 +229,10 @@ fn the_residual_is_measured_at_speed_and_matches_the_reference() {
 /// impedance accounts for it.
 #[test]
 fn a_current_ripple_the_impedance_explains_is_no_error() {
-    let (mut l, base) = learner(|_| {});
+    let (mut l, _, base) = learner(|_| {});
     let w = speed_800_rpm(&base);
     let n = l.batch_updates as usize;
-    let samples = steady(w, [0.0, 0.8], [(0.01, -0.005), (0.02, 0.01)], 0.0, n);
+    let samples = steady(w, [0.0, 0.8], [(0.01, -0.005), (0.02, 0.01)], 0.0, n + END);
     let written = feed(&mut l, &samples, w);
     let got = l.status().error_v;
     println!("ê {got:.4} V");
@@ -228,10 +242,10 @@ fn a_current_ripple_the_impedance_explains_is_no_error() {
 
 /// Gates: a current within ten bands, a stopped drive, the modulator at its limit and a
 /// speed too low for a batch's sector steps all leave the batch empty; a speed that moves by
-/// more than a tenth in a batch, or a current reference that steps, throws it away.
+/// more than a tenth in a batch, or a current reference that steps or swings, throws it away.
 #[test]
 fn gates_keep_what_is_not_a_steady_run_out() {
-    let (mut l, base) = learner(|_| {});
+    let (mut l, _, base) = learner(|_| {});
     let w = speed_800_rpm(&base);
     let e = 3.0 / base.voltage_v;
     let n = l.batch_updates as usize;
@@ -257,7 +271,7 @@ fn gates_keep_what_is_not_a_steady_run_out() {
     assert_eq!(l.status().batches, 0);
     // A ramp: the speed from w to 1.2 w over the batch.
     let mut scale = pu_from_f64(1.0);
-    for (k, s) in loaded.iter().take(n).enumerate() {
+    for (k, s) in loaded.iter().take(n + 1).enumerate() {
         let mut i = input(s);
         i.omega = pu_from_f64(w * (1.0 + 0.2 * k as f64 / n as f64));
         if let Some(x) = l.update(&i, scale) {
@@ -266,7 +280,7 @@ fn gates_keep_what_is_not_a_steady_run_out() {
     }
     assert_eq!(l.status().discarded, 1);
     // A load step: the current reference from 0.8 to 0.95 pu mid-batch.
-    for (k, s) in loaded.iter().take(n).enumerate() {
+    for (k, s) in loaded.iter().take(n + 1).enumerate() {
         let mut i = input(s);
         i.omega = pu_from_f64(w);
         if 2 * k > n {
@@ -277,6 +291,17 @@ fn gates_keep_what_is_not_a_steady_run_out() {
         }
     }
     assert_eq!(l.status().discarded, 2);
+    // A speed loop that rings: the q reference swings between 0.2 and 1.4 pu, its halves'
+    // means alike.
+    for (k, s) in loaded.iter().take(n + 1).enumerate() {
+        let mut i = input(s);
+        i.omega = pu_from_f64(w);
+        i.i_ref.q = pu_from_f64(0.8 + 0.6 * (k as f64 * 0.3).sin());
+        if let Some(x) = l.update(&i, scale) {
+            scale = x;
+        }
+    }
+    assert_eq!(l.status().discarded, 3);
     assert_eq!(l.status().batches, 0);
     assert_eq!(scale, pu_from_f64(1.0));
 }
@@ -285,34 +310,36 @@ fn gates_keep_what_is_not_a_steady_run_out() {
 /// drive took from elsewhere (a standstill calibration) is where the learner goes on from.
 #[test]
 fn the_scale_is_bounded_and_follows_the_drive() {
-    let (mut l, base) = learner(|_| {});
+    let (mut l, _, base) = learner(|_| {});
     let w = speed_800_rpm(&base);
     let n = l.batch_updates as usize;
-    // A residual of 100 V: the scale would be 7.6; a quarter per batch by default.
+    // A residual of 100 V: the scale would be 7.6; a quarter per batch by default (two
+    // batches: the first is confirmed by the second).
     let samples = steady(
         w,
         [0.0, 0.8],
         [(0.0, 0.0), (0.0, 0.0)],
         100.0 / base.voltage_v,
-        n,
+        2 * (n + END),
     );
     let written = feed(&mut l, &samples, w);
     assert_eq!(written.len(), 1);
     assert!((written[0] - 1.25).abs() < 1e-6, "{written:?}");
-    let (mut l, _) = learner(|d| {
+    let (mut l, design, _) = learner(|d| {
         d.gain = 1.0;
         d.max_step = 4.0;
     });
     let written = feed(&mut l, &samples, w);
     assert_eq!(written.len(), 1);
     assert!((written[0] - 4.0).abs() < 1e-6, "{written:?}");
-    // The drive was calibrated to 0.5 meanwhile; a residual of −1.5 V takes a tenth off it (gain 1).
+    // The drive was calibrated to 0.5 meanwhile; a residual of −3 V takes a fifth off it
+    // (gain 1).
     let samples = steady(
         w,
         [0.0, 0.8],
         [(0.0, 0.0), (0.0, 0.0)],
-        -1.5 / base.voltage_v,
-        n,
+        -3.0 / base.voltage_v,
+        2 * (n + END),
     );
     let mut last = None;
     for s in &samples {
@@ -321,8 +348,60 @@ fn the_scale_is_bounded_and_follows_the_drive() {
         last = l.update(&i, pu_from_f64(0.5)).or(last);
     }
     let got = last.unwrap().to_num::<f64>();
-    let want = 0.5 - 1.5 / l.design().v_dead_v;
+    let want = 0.5 - 3.0 / design.v_dead_v;
     assert!((got - want).abs() < 0.01, "{got} vs {want}");
+}
+
+/// A batch of `n` samples and its end at speed `w` (pu) with the current (0, 0.8) pu and a
+/// residual of `v` volts, no ripple.
+fn one_batch(n: usize, base: &PerUnit, w: f64, v: f64) -> Vec<Sample> {
+    steady(
+        w,
+        [0.0, 0.8],
+        [(0.0, 0.0), (0.0, 0.0)],
+        v / base.voltage_v,
+        n + END,
+    )
+}
+
+/// A reading within the dead band of the drive's own scale is not written: two batches of
+/// 1 V (the scale read 1.05) leave the drive at 1; two of 4 V take the reading beyond 15 %
+/// and write it.
+#[test]
+fn readings_within_the_dead_band_are_not_written() {
+    let (mut l, design, base) = learner(|_| {});
+    let w = speed_800_rpm(&base);
+    let n = l.batch_updates as usize;
+    let batch = |v: f64| one_batch(n, &base, w, v);
+    for _ in 0..2 {
+        assert!(feed(&mut l, &batch(1.0), w).is_empty());
+    }
+    let read = f64::from(l.status().scale);
+    assert!(read > 1.03 && read < 1.07, "{read}");
+    let mut written = feed(&mut l, &batch(4.0), w);
+    written.extend(feed(&mut l, &batch(4.0), w));
+    assert_eq!(written.len(), 1, "{written:?}");
+    assert!(written[0] > 1.0 + design.dead_band, "{written:?}");
+}
+
+/// A batch moves the scale only when the one before it agrees in sign, by the smaller of the
+/// two: a residual of +4 V then −4 V writes nothing, a second −4 V writes the gain's share.
+#[test]
+fn one_batch_alone_does_not_move_the_scale() {
+    let (mut l, design, base) = learner(|_| {});
+    let w = speed_800_rpm(&base);
+    let n = l.batch_updates as usize;
+    let batch = |v: f64| one_batch(n, &base, w, v);
+    assert!(feed(&mut l, &batch(4.0), w).is_empty());
+    assert!(feed(&mut l, &batch(-4.0), w).is_empty());
+    assert_eq!(l.status().batches, 2);
+    let written = feed(&mut l, &batch(-4.0), w);
+    let step = design.gain * 4.0 / design.v_dead_v;
+    assert_eq!(written.len(), 1, "{written:?}");
+    assert!(
+        (written[0] - (1.0 - step)).abs() < 0.01,
+        "{written:?} vs {step}"
+    );
 }
 
 /// A drive without compensation has no `V_dead` to scale: the constructor names the field.

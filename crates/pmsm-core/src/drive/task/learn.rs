@@ -79,5 +79,5 @@ pub(super) fn tracker_of(config: &DriveConfig) -> Option<Tracker> {
 #[cold]
 #[inline(never)]
 pub(super) fn learner_of(config: &DriveConfig) -> Option<DistortionLearner> {
-    DistortionLearner::new(&config.motor, config, DistortionDesign::for_drive(config)).ok()
+    DistortionLearner::build(&config.motor, config, DistortionDesign::for_drive(config))
 }
