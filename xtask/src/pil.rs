@@ -128,6 +128,14 @@ pub fn section() -> String {
             over(&v[3], 12000)
         ));
     }
+    if let Some(v) = table.get("task_saturated") {
+        s.push_str(&format!(
+            "The same on the bus read at a quarter (`task_saturated`): Cortex-M4 {}, \
+             Cortex-M0 {}.\n\n",
+            over(&v[1], 4000),
+            over(&v[3], 12000)
+        ));
+    }
     if !per_sample.is_empty() {
         s.push_str(&format!(
             "Both steps per sample (the interrupt's mean and the task's over its period): {}.\n\n",

@@ -727,6 +727,7 @@ fn run_drive(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) -> Result<(), 
         }
         if let Some(st) = bench_drive_sides(meter, &rec, drive_on_low_bus, LOW_BUS_EIGHTHS) {
             report("isr_saturated", &st.isr);
+            report("task_saturated", &st.task);
         }
         #[cfg(target_has_atomic = "32")]
         if let Some(st) = bench_drive_sides(meter, &rec, drive_with_injection, 8) {
