@@ -375,7 +375,7 @@ impl DriveConfig {
         })?;
         // Only an IPD start-up needs pulses this motor and bus can drive.
         let ipd = match design.startup {
-            // (Refused above in a build without it.)
+            // (`features::check` refused it in a build without it.)
             #[cfg(feature = "ipd")]
             StartupMode::Ipd => IpdConfig::new(motor, &base, design.ipd)?,
             _ => IpdConfig::unused(design.ipd),

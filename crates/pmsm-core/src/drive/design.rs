@@ -421,7 +421,7 @@ impl DriveDesign {
             // The tracker rewrites the current-model MRAS's model; the back-EMF estimators
             // keep theirs (it would only move the current loops' feed-forward under them).
             tracking: estimator == EstimatorKind::MrasCurrent && cfg!(feature = "tracking"),
-            // Wherever there is a compensation to scale (`DriveConfig::new` runs it only with
+            // Wherever there is a compensation to scale (the task builds the learner only with
             // a compensated command), in a build with the learner.
             deadtime_learning: cfg!(feature = "distortion-learner") && inverter.dead_time_s > 0.0,
             #[cfg(feature = "injection")]

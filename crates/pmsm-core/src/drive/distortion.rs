@@ -33,14 +33,15 @@
 //!
 //! # Update
 //!
-//! At the end of each batch the scale moves by [`DistortionDesign::gain`] times `ê` over the
-//! told `V_dead`, within [`DistortionDesign::scale_range`], once the batch before agrees; one
-//! batch moves it by at most [`DistortionDesign::max_step`]. It is written to the drive when
-//! it moved by more than [`DistortionDesign::write_threshold`] and lies beyond
-//! [`DistortionDesign::dead_band`] of the scale the drive had (told, or calibrated at
-//! standstill); within that band the drive keeps its own. The batch is thrown away when the speed or the current
-//! reference's length moved by more than [`DistortionDesign::max_speed_change`] of its mean
-//! in it.
+//! At the end of each batch whose predecessor agrees in sign, the scale read is the one in use
+//! plus [`DistortionDesign::gain`] times the smaller `ê` of the two over the told `V_dead`
+//! (at most [`DistortionDesign::max_step`] from it), within
+//! [`DistortionDesign::scale_range`]. It is written to the drive when it moved by more than
+//! [`DistortionDesign::write_threshold`] and lies beyond [`DistortionDesign::dead_band`] of
+//! the scale the drive had (told, or calibrated at standstill); within that band the drive
+//! keeps its own. The batch is thrown away when the speed or the current reference's length
+//! moved, or the length spread, by more than [`DistortionDesign::max_speed_change`] of its
+//! mean in it.
 //! Gates (the sample is skipped): outside `Run`, [`DistortionDesign::settle_s`] after
 //! entering it, below [`DistortionDesign::min_speed_rad_s`] (too few sector steps per batch)
 //! or where the sixth harmonic turns by more than a quarter turn between two updates, with
@@ -60,7 +61,7 @@ use super::{Drive, DriveConfig, TrackerInput};
 use crate::angle::Angle;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq, inverse_park, park};
-use crate::num::{PU_FRAC, Pu};
+use crate::num::{PU_FRAC, Pu, pu_from_f64};
 use crate::params::{MotorParams, ParamError, ParamReason, in_range};
 use batch::{Batch, End, HARMONIC_FRAC, Model, SIGNAL_FRAC, within};
 
@@ -191,9 +192,10 @@ pub struct DistortionLearner {
     settle_updates: u32,
     run_updates: u32,
     batch: Batch,
-    /// The scale last written (or read from the drive); the one held is the status's; the
-    /// drive's own, which readings within the dead band leave in place.
+    /// The scale last written (or read from the drive); the one read is the status's.
     written: f32,
+    /// The drive's own scale (told, or calibrated), which readings within the dead band leave
+    /// in place.
     own: f32,
     /// The last used batch's `ê` per unit, zero when none since the scale came from the drive:
     /// a batch moves the scale only when its predecessor agrees.
@@ -207,7 +209,7 @@ pub struct DistortionLearner {
 /// 2⁶¹).
 fn sign_pattern(i: AlphaBeta, inv_band_q20: i64) -> (i32, i32) {
     const ONE: i64 = 1 << SIGNAL_FRAC;
-    let sg = |x: i64| (((x >> 12) * inv_band_q20) >> 20).clamp(-ONE, ONE);
+    let sg = |x: i64| (((x >> (PU_FRAC - SIGNAL_FRAC)) * inv_band_q20) >> 20).clamp(-ONE, ONE);
     let (a, b) = (i64::from(i.alpha.to_bits()), i64::from(i.beta.to_bits()));
     // The phases b and c: −a/2 ± (√3/2) β (56756/2¹⁶ = √3/2 to 10⁻⁵).
     let h = (b * 56_756) >> 16;
@@ -316,10 +318,9 @@ impl DistortionLearner {
                 let i = d.min_current_bands * d.band_a / base.current_a * (1 << SIGNAL_FRAC) as f64;
                 (i * i) as i64
             },
-            min_speed: crate::num::pu_from_f64(d.min_speed_rad_s / base.omega_e_rad_s).to_bits(),
+            min_speed: pu_from_f64(d.min_speed_rad_s / base.omega_e_rad_s).to_bits(),
             // The sixth harmonic turns at most a quarter turn per update.
-            max_speed: crate::num::pu_from_f64(core::f64::consts::FRAC_PI_2 / (6.0 * turn))
-                .to_bits(),
+            max_speed: pu_from_f64(core::f64::consts::FRAC_PI_2 / (6.0 * turn)).to_bits(),
             batch_updates: libm::ceil(d.batch_s / dt) as u32,
             settle_updates: libm::ceil(d.settle_s / dt) as u32,
             run_updates: 0,
@@ -355,20 +356,18 @@ impl DistortionLearner {
         // A full batch ends over the next updates, one stage each (`batch`), which do not
         // listen.
         self.status.listening = false;
-        let e = match self.batch.end_stage(self.max_speed_change, &self.model) {
-            End::Pending => return None,
+        let end = self.batch.end_stage(self.max_speed_change, &self.model);
+        if end != End::Pending {
+            self.batch = Batch::default();
+        }
+        let e = match end {
+            End::Error(e) => e,
             End::Moved => {
                 self.status.discarded = self.status.discarded.saturating_add(1);
-                self.batch = Batch::default();
                 return None;
             }
-            End::NoSolution => {
-                self.batch = Batch::default();
-                return None;
-            }
-            End::Error(e) => e,
+            End::Pending | End::NoSolution => return None,
         };
-        self.batch = Batch::default();
         self.take(e);
         let learnt = self.status.scale;
         let scale = if libm::fabsf(learnt - self.own) < self.dead_band {
