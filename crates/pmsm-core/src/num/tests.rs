@@ -130,6 +130,34 @@ fn mul_just_inside_the_range_is_rounded() {
     assert!((to_f64(mul(a, b)) - exact).abs() <= 0.5 / (1u64 << PU_FRAC) as f64);
 }
 
+/// The Cortex-M0's wide products at the edges of the halves: every pair of operands at and
+/// around zero, ±2¹⁵, ±2¹⁶, ±2³¹ ∓ 2¹⁵ and the ends of the range (a balanced high half of
+/// 2¹⁵ where the low half is negative, near `i32::MAX`).
+#[test]
+fn wide_multiply_from_halves_is_exact_at_the_edges() {
+    extern crate std;
+    let mut edges = std::vec::Vec::new();
+    for c in [0i64, 1 << 15, 1 << 16, (1 << 31) - (1 << 15), 1 << 31] {
+        for d in -2i64..=2 {
+            for x in [c + d, -(c + d)] {
+                if let Ok(x) = i32::try_from(x) {
+                    edges.push(x);
+                }
+            }
+        }
+    }
+    for &a in &edges {
+        for &b in &edges {
+            let exact = a as i64 * b as i64;
+            assert_eq!(wmul_halves(a, b), exact, "{a} {b}");
+            assert_eq!(
+                umul_halves(a as u32, b as u32),
+                a as u32 as u64 * b as u32 as u64
+            );
+        }
+    }
+}
+
 proptest! {
     #[test]
     fn reciprocal_within_half_lsb_and_two_ulp(d in 1i32..=i32::MAX, x in any::<i32>()) {

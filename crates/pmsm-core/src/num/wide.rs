@@ -30,7 +30,9 @@ fn wmul_v6m(a: i32, b: i32) -> i64 {
 }
 
 /// `a · b` from 16-bit halves taken balanced: `a = a_h 2¹⁶ + a_l` with `a_l` the low half
-/// sign-extended (`[−2¹⁵, 2¹⁵)`) and `a_h = (a − a_l)/2¹⁶` (`[−2¹⁵, 2¹⁵]`). Every partial
+/// sign-extended (`[−2¹⁵, 2¹⁵)`) and `a_h = (a − a_l)/2¹⁶` (`[−2¹⁵, 2¹⁵]`), formed as
+/// `⌊a/2¹⁶⌋ − ⌊a_l/2¹⁶⌋` (plus one where `a_l` is negative: `a − a_l` itself leaves the `i32`
+/// range for `a ≥ 2³¹ − 2¹⁵`, where `a_h = 2¹⁵`). Every partial
 /// product is within ±2³⁰, and so is the middle sum within the `i32` range: `a_h b_l` reaches
 /// 2³⁰ only at `a_h = b_l = −2¹⁵`, where `a_l ≥ 0` keeps `a_l b_h` below 2³⁰ − 2¹⁵ (the
 /// negative side likewise). So the middle term needs no 64-bit sum of its own: a Cortex-M0
@@ -39,7 +41,7 @@ fn wmul_v6m(a: i32, b: i32) -> i64 {
 #[allow(dead_code)] // used on ARMv6-M only, and by the tests
 pub(super) const fn wmul_halves(a: i32, b: i32) -> i64 {
     let (al, bl) = (a as i16 as i32, b as i16 as i32);
-    let (ah, bh) = (a.wrapping_sub(al) >> 16, b.wrapping_sub(bl) >> 16);
+    let (ah, bh) = ((a >> 16) - (al >> 16), (b >> 16) - (bl >> 16));
     let mid = ah.wrapping_mul(bl).wrapping_add(al.wrapping_mul(bh));
     let ll = al.wrapping_mul(bl);
     // (a_h b_h 2³² + mid 2¹⁶) + a_l b_l by words: the high word of mid 2¹⁶ is mid >> 16.
