@@ -12,7 +12,9 @@
 #      `isr_<estimator>` with the current-model MRAS by default, with MTPA and field weakening
 #      on (`isr_flux`), with the voltage on the circle (`isr_saturated`) and with the
 #      high-frequency injection on (`isr_injection`, docs/injection.md), the back-EMF
-#      estimators' in a closed loop; the task step `task`, once per `task_period` samples),
+#      estimators' in a closed loop; the task step `task`, once per `task_period` samples,
+#      also on the low bus (`task_saturated`) and with the tracker's learning stage on top
+#      (`task` + `task_tracker`)),
 #      else `PIL FAIL` (exit 1);
 #   5. builds and runs, on both machines, the image of feature `identify` (the
 #      identification's benchmarks and the back-EMF estimators' drives in a closed loop with a
@@ -94,6 +96,7 @@ declare -A isr_budget=(
   [cortex-m4:task_low_l]=4000 [cortex-m0:task_low_l]=12000
   [cortex-m4:task_high_p]=4000 [cortex-m0:task_high_p]=12000
   [cortex-m4:task]=4000 [cortex-m0:task]=12000
+  [cortex-m4:task_saturated]=4000 [cortex-m0:task_saturated]=12000
 )
 # The task period (samples), for the mean cost per sample of both steps.
 task_period=8
@@ -142,13 +145,22 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
   # The interrupt step's budget (worst case over the recorded run), with the default
   # configuration, with MTPA and field weakening on, and with the voltage on the current
   # loops' circle and the modulator's hexagon (the bus read at a quarter); the task's.
-  steps="isr_mras_current isr_flux isr_saturated task"
+  steps="isr_mras_current isr_flux isr_saturated task task_saturated"
   # The injection is built for the Cortex-M4 only (examples/qemu/firmware/Cargo.toml).
   [[ $cpu == cortex-m4 ]] && steps+=" isr_injection"
   for step in $steps; do
     p="$(check_budget "$run_log" "$cpu" "$step")"
     [[ -z $p ]] || problems+=("$p")
   done
+  # The tracker of R and psi is frozen in the recorded runs: its learning stage
+  # (`task_tracker`) on top of the task's worst case must fit the task's budget too.
+  task_max="$(grep -oE "^PIL $cpu task insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" | sed -E 's/.*insn_max=//')"
+  tracker_max="$(grep -oE "^PIL $cpu task_tracker insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" | sed -E 's/.*insn_max=//')"
+  if [[ -z $task_max || -z $tracker_max ]]; then
+    problems+=("no task or task_tracker figure")
+  elif ((task_max + tracker_max > ${isr_budget[$cpu:task]})); then
+    problems+=("task insn_max=$task_max with task_tracker insn_max=$tracker_max over the budget of ${isr_budget[$cpu:task]}")
+  fi
   # The mean cost per sample of both steps: the interrupt's mean and the task's over its
   # period.
   isr_mean="$(grep -oE "^PIL $cpu isr_mras_current insn_mean=[0-9]+" "$run_log" | sed -E 's/.*=//')"

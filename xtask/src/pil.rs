@@ -136,6 +136,23 @@ pub fn section() -> String {
             over(&v[3], 12000)
         ));
     }
+    if let (Some(t), Some(u)) = (table.get("task"), table.get("task_tracker")) {
+        let sum = |a: &str, b: &str| match (a.parse::<u32>(), b.parse::<u32>()) {
+            (Ok(a), Ok(b)) => (a + b).to_string(),
+            _ => "?".to_owned(),
+        };
+        s.push_str(&format!(
+            "The tracker of `R` and `ψ` learning (`task_tracker`: `Tracker::task_step`, its \
+             share of a task step, on motor B's steady states with the plant's `R` ×1.3, its \
+             writes included; in the runs above it is frozen below its speed), worst case: \
+             Cortex-M4 {}, Cortex-M0 {}. The task's worst case with the tracker learning is at \
+             most `task`'s plus this: Cortex-M4 {}, Cortex-M0 {}.\n\n",
+            u[1],
+            u[3],
+            over(&sum(&t[1], &u[1]), 4000),
+            over(&sum(&t[3], &u[3]), 12000)
+        ));
+    }
     if !per_sample.is_empty() {
         s.push_str(&format!(
             "Both steps per sample (the interrupt's mean and the task's over its period): {}.\n\n",

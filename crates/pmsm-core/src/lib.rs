@@ -126,7 +126,7 @@ pub use drive::{
 };
 pub use drive::{
     DistortionDesign, DistortionFrozen, DistortionLearner, DistortionStatus, Frozen,
-    ModelCoefficients, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
+    ModelCoefficients, TRACKER_STAGES, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
 };
 pub use error::{ConfigError, Fit};
 pub use frames::{Abc, AlphaBeta, Dq, clarke, inverse_clarke, inverse_park, park, rotate};

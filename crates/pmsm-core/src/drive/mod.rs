@@ -66,8 +66,8 @@ pub use interface::{DriveInput, DriveOutput, DriveState, Fault, SpeedRefLimit, T
 pub use isr::DriveIsr;
 pub use task::DriveTask;
 pub use tracking::{
-    Frozen, ModelCoefficients, SPEED_FILTER_S, Tracker, TrackerDesign, TrackerInput, TrackerStatus,
-    WRITE_THRESHOLD,
+    Frozen, ModelCoefficients, SPEED_FILTER_S, TRACKER_STAGES, Tracker, TrackerDesign,
+    TrackerInput, TrackerStatus, WRITE_THRESHOLD,
 };
 
 use crate::frames::AlphaBeta;

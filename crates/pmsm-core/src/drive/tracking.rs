@@ -46,25 +46,55 @@
 //!
 //! # Cost
 //!
-//! `f32` arithmetic, about 60 operations and one sin/cos per [`Tracker::update`]; the new
-//! coefficients ([`Tracker::coefficients`], `f64`, two exponentials) only when the estimates,
-//! low-passed over [`TrackerDesign::apply_time_s`], moved by more than [`WRITE_THRESHOLD`]. [`Drive::set_model`] copies 14 words.
+//! `f32` arithmetic: about a hundred operations, one sin/cos and three square roots per
+//! [`Tracker::update`]; the new coefficients ([`Tracker::coefficients`], two exponentials and
+//! about forty operations) only when the estimates, low-passed over
+//! [`TrackerDesign::apply_time_s`], moved by more than [`WRITE_THRESHOLD`].
+//! [`Drive::set_model`] copies 14 words. On a Cortex-M0, whose `f32` is software at about 140
+//! instructions an operation, an update costs about 13 000 instructions and a write 9 000,
+//! more than a task period's budget; the drive's task runs them as [`Tracker::task_step`]'s
+//! [`TRACKER_STAGES`] stages of at most 5 000, one per task period, the same bits as
+//! `update` then `coefficients`, and so updates every `TRACKER_STAGES` task periods
+//! ([`TrackerDesign::interval_samples`]).
 
 use super::{Drive, DriveState};
 use crate::angle::Angle;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, Dq};
-use crate::num::{PU_FRAC, Pu, pu_from_f64};
-use crate::observer::MrasModel;
+use crate::num::{PU_FRAC, Pu};
+use crate::observer::{MrasDecay, MrasModel, MrasModelScaling};
 use crate::params::{MotorParams, in_range};
 use crate::units::PerUnit;
 
 mod design;
+mod filter;
 pub use design::TrackerDesign;
+use filter::{Measurement, Sample};
 
 /// Relative change of `R̂` or `ψ̂` since the last write that makes [`Tracker::update`] ask for
 /// a new write.
 pub const WRITE_THRESHOLD: f32 = 2e-4;
+
+/// Task periods of [`Tracker::task_step`]'s cycle: an update's three parts, then the new
+/// coefficients' decay and weights (module docs, "Cost"); the drive's tracker updates every
+/// `TRACKER_STAGES` task periods.
+pub const TRACKER_STAGES: u32 = 5;
+
+/// What one stage of [`Tracker::task_step`] leaves the next.
+#[derive(Clone, Copy, Debug, Default)]
+enum Work {
+    /// Nothing (frozen, or no write due).
+    #[default]
+    Idle,
+    /// The update's sample, for its measurement.
+    Sampled(Sample),
+    /// The update's measurement, for its correction.
+    Measured(Measurement),
+    /// The estimates moved: a write is due.
+    Due,
+    /// The write's decay, for its weights.
+    Decayed(MrasDecay),
+}
 
 /// Time constant of the tracker's filters on the estimated speed and its derivative, s.
 pub const SPEED_FILTER_S: f64 = 0.02;
@@ -152,9 +182,11 @@ pub struct TrackerStatus {
 /// The tracker: design in per unit, and the filter's state (`f32`).
 #[derive(Clone, Copy, Debug)]
 pub struct Tracker {
-    /// The drive's model and bases, for the coefficients.
-    motor: MotorParams,
-    base: PerUnit,
+    /// The model's coefficients as functions of `R̂/R₀` and `ψ̂/ψ₀`.
+    model: MrasModelScaling,
+    /// `R₀` in Ω and `ψ₀` in Wb, as the drive was given them.
+    rs0_ohm: f64,
+    flux0_wb: f64,
     design: TrackerDesign,
     /// `R₀`, `ψ₀`, `L_d`, `L_q` of the model, per unit.
     r0: f32,
@@ -205,6 +237,9 @@ pub struct Tracker {
     /// Below the least speed since last under it and not yet above it by [`SPEED_HYSTERESIS`].
     slow: bool,
     status: TrackerStatus,
+    /// [`Tracker::task_step`]'s place in its cycle, and what its last stage left the next.
+    stage: u8,
+    work: Work,
 }
 
 /// The speed gate's hysteresis: frozen below [`TrackerDesign::min_speed_rad_s`], learning
@@ -313,8 +348,9 @@ impl Tracker {
         let (gr, gp) = (d.rs_per_k, d.flux_per_k);
         let (vr, vp) = (d.rs_sigma * d.rs_sigma, d.flux_sigma * d.flux_sigma);
         Self {
-            motor: *motor,
-            base: *base,
+            model: MrasModelScaling::new(motor, base),
+            rs0_ohm: motor.rs_ohm,
+            flux0_wb: motor.flux_wb,
             design,
             r0: (motor.rs_ohm / base.impedance_ohm) as f32,
             psi0: (motor.flux_wb / base.flux_wb) as f32,
@@ -357,6 +393,8 @@ impl Tracker {
             run_updates: 0,
             slow: true,
             status: TrackerStatus::default(),
+            stage: 0,
+            work: Work::Idle,
         }
     }
 
@@ -367,12 +405,17 @@ impl Tracker {
 
     /// The tracked resistance as the drive is given it, Ω.
     pub fn rs_ohm(&self) -> f64 {
-        self.motor.rs_ohm * self.applied[0] as f64
+        self.rs0_ohm * self.applied[0] as f64
     }
 
     /// The tracked magnet flux as the drive is given it, Wb.
     pub fn flux_wb(&self) -> f64 {
-        self.motor.flux_wb * self.applied[1] as f64
+        self.flux0_wb * self.applied[1] as f64
+    }
+
+    /// `(R̂/R₀, ψ̂/ψ₀)` as the drive is given them (after the low-pass).
+    pub fn applied(&self) -> (f32, f32) {
+        (self.applied[0], self.applied[1])
     }
 
     /// The filter's `(R̂/R₀, ψ̂/ψ₀)` (before the low-pass to the drive).
@@ -389,7 +432,56 @@ impl Tracker {
     /// Returns whether the estimates moved enough since the last write for
     /// [`Tracker::coefficients`] to be written to the drive.
     pub fn update(&mut self, input: &TrackerInput) -> bool {
-        self.learn(input);
+        if let Some(m) = self.begin(input).and_then(|s| self.measure(&s)) {
+            self.learn_from(&m);
+        }
+        self.apply()
+    }
+
+    /// One task period's share of the tracker's work, in a cycle of [`TRACKER_STAGES`]: the
+    /// gates and the drift on `input` (the only stage that reads it), the measurement, the
+    /// correction and the low-pass to the drive, then, when that moved by more than
+    /// [`WRITE_THRESHOLD`], the new coefficients' decay and their weights, returned at the
+    /// cycle's last stage. The stages compute the bits of [`Tracker::update`] then
+    /// [`Tracker::coefficients`], each about a fifth of their cost (a Cortex-M0 has no FPU:
+    /// docs/tracking.md, "Cost on the MCU").
+    pub fn task_step(&mut self, input: &TrackerInput) -> Option<ModelCoefficients> {
+        let stage = u32::from(self.stage);
+        self.stage = if stage + 1 < TRACKER_STAGES {
+            self.stage + 1
+        } else {
+            0
+        };
+        let work = core::mem::take(&mut self.work);
+        match (stage, work) {
+            (0, _) => {
+                if let Some(s) = self.begin(input) {
+                    self.work = Work::Sampled(s);
+                }
+            }
+            (1, Work::Sampled(s)) => {
+                if let Some(m) = self.measure(&s) {
+                    self.work = Work::Measured(m);
+                }
+            }
+            (2, work) => {
+                if let Work::Measured(m) = work {
+                    self.learn_from(&m);
+                }
+                if self.apply() {
+                    self.work = Work::Due;
+                }
+            }
+            (3, Work::Due) => self.work = Work::Decayed(self.model.decay(self.applied[0])),
+            (_, Work::Decayed(d)) => return self.written_from(&d).ok(),
+            _ => {}
+        }
+        None
+    }
+
+    /// The low-pass from the filter's estimates to the values the drive is given; whether they
+    /// moved by more than [`WRITE_THRESHOLD`] since the last write.
+    fn apply(&mut self) -> bool {
         let g = self.apply_gain;
         self.applied = [
             toward(self.applied[0], self.x[0], g),
@@ -399,161 +491,21 @@ impl Tracker {
             || libm::fabsf(self.applied[1] - self.written[1]) > WRITE_THRESHOLD
     }
 
-    /// The gates and the filter of one update.
-    fn learn(&mut self, input: &TrackerInput) {
-        self.status.learning = false;
-        let w_hat = pu(input.omega);
-        if !input.running {
-            self.run_updates = 0;
-            self.status.frozen = Frozen::NotRunning;
-            return;
-        }
-        let (id, iq) = (pu(input.i_dq.d), pu(input.i_dq.q));
-        if self.run_updates == 0 {
-            (self.w_f, self.dw_f) = (w_hat, 0.0);
-            (self.i_last, self.motion) = ([id, iq], 0.0);
-        }
-        self.run_updates = self.run_updates.saturating_add(1);
-        let w_prev = self.w_f;
-        self.w_f = toward(self.w_f, w_hat, self.filter);
-        self.dw_f = toward(self.dw_f, self.w_f - w_prev, self.filter);
-        // The current through a short low-pass first: the sampling noise of a steady current is
-        // no motion.
-        let pre = self.motion_pre;
-        let i_f = [
-            toward(self.i_last[0], id, pre),
-            toward(self.i_last[1], iq, pre),
-        ];
-        let step = self.ld * libm::fabsf(i_f[0] - self.i_last[0])
-            + self.lq * libm::fabsf(i_f[1] - self.i_last[1]);
-        self.motion = toward(self.motion, step, self.filter);
-        self.i_last = i_f;
-        // The drift goes on whether or not this update learns (bounded by the prior).
-        self.predict();
-        // The inverter's residual: whole within the band of zero current, then band/|i|.
-        let i_abs = libm::sqrtf(id * id + iq * iq);
-        let residual = if i_abs > self.band {
-            self.inv_v * self.band / i_abs
-        } else {
-            self.inv_v
-        };
-        let speed = libm::fabsf(w_hat);
-        self.slow = if self.slow {
-            speed <= self.min_speed * (1.0 + SPEED_HYSTERESIS)
-        } else {
-            speed < self.min_speed
-        };
-        let frozen = if self.run_updates <= self.settle_updates {
-            Some(Frozen::Settling)
-        } else if self.slow {
-            Some(Frozen::LowSpeed)
-        } else if residual > self.inv_ratio * self.psi0 * speed {
-            Some(Frozen::Inverter)
-        } else if input.saturated {
-            Some(Frozen::Saturated)
-        } else if libm::fabsf(self.dw_f) > self.max_dw
-            || libm::fabsf(id - pu(input.i_ref.d)) > self.max_di
-            || libm::fabsf(iq - pu(input.i_ref.q)) > self.max_di
-        {
-            Some(Frozen::Transient)
-        } else {
-            None
-        };
-        if let Some(f) = frozen {
-            self.status.frozen = f;
-            return;
-        }
-        // The voltage acts over the coming period: its frame is at the mid-period angle.
-        let turn = self.half_turn * w_hat * (4_294_967_296.0 / core::f32::consts::TAU);
-        let (s, c) = sin_cos_f32(input.theta + Angle(turn as i32));
-        let (va, vb) = (pu(input.v.alpha), pu(input.v.beta));
-        let (vd, vq) = (va * c + vb * s, vb * c - va * s);
-        let (wd, wq) = (vd + w_hat * self.lq * iq, vq - w_hat * self.ld * id);
-        let r_hat = self.r0 * self.x[0];
-        let (ed, eq) = (wd - r_hat * id, wq - r_hat * iq);
-        let norm = libm::sqrtf(ed * ed + eq * eq);
-        if norm.is_nan() || norm <= 0.0 {
-            return;
-        }
-        let (nd, nq) = (ed / norm, eq / norm);
-        let y = nd * wd + nq * wq;
-        let phi = [
-            self.r0 * (nd * id + nq * iq),
-            self.psi0 * libm::fabsf(w_hat),
-        ];
-        let motion_v = self.motion_gain * self.motion;
-        // The regressor's speed is the estimate: its swing about the filtered speed is an
-        // error of the EMF term, counted as noise.
-        let swing_v = self.psi0 * (w_hat - self.w_f);
-        // `R` learns only where its drop is a fair share of the EMF: elsewhere a bias of a
-        // percent of the EMF would read as a resistance error many times larger.
-        let learn_r = libm::fabsf(phi[0]) >= self.drop_ratio * phi[1];
-        self.correct(y, phi, motion_v * motion_v + swing_v * swing_v, learn_r);
-        self.status.learning = true;
-        self.status.learnt = self.status.learnt.saturating_add(1);
-    }
-
-    /// The random walk of one update, the variances held within the prior's.
-    fn predict(&mut self) {
-        let p = &mut self.p;
-        p[0] = (p[0] + self.q[0]).min(self.p_max[0]);
-        p[2] = (p[2] + self.q[2]).min(self.p_max[1]);
-        let c = libm::sqrtf(p[0] * p[2]);
-        p[1] = (p[1] + self.q[1]).max(-c).min(c);
-    }
-
-    /// The Kalman correction on `y = φ · x` (per unit of `V_b`), the measurement's variance
-    /// raised by `extra`; without `learn_r`, on `ψ` alone with `R̂` taken as known (its
-    /// variance kept, its correlation with `ψ` shrunk as `ψ`'s variance is).
-    fn correct(&mut self, y: f32, phi: [f32; 2], extra: f32, learn_r: bool) {
-        let p = self.p;
-        let (pf, s) = if learn_r {
-            let pf = [p[0] * phi[0] + p[1] * phi[1], p[1] * phi[0] + p[2] * phi[1]];
-            (pf, phi[0] * pf[0] + phi[1] * pf[1] + self.noise2 + extra)
-        } else {
-            let pf = [0.0, p[2] * phi[1]];
-            (pf, phi[1] * pf[1] + self.noise2 + extra)
-        };
-        let k = [pf[0] / s, pf[1] / s];
-        let nu = y - (phi[0] * self.x[0] + phi[1] * self.x[1]);
-        let mut dx = [k[0] * nu, k[1] * nu];
-        // A step beyond the limit is shortened and the covariance kept: the rest of the
-        // innovation comes back at the next updates.
-        let big = libm::fabsf(dx[0]).max(libm::fabsf(dx[1]));
-        if big > self.max_step {
-            let scale = self.max_step / big;
-            dx = [dx[0] * scale, dx[1] * scale];
-        } else {
-            self.p = if learn_r {
-                [
-                    p[0] - k[0] * pf[0],
-                    p[1] - k[0] * pf[1],
-                    p[2] - k[1] * pf[1],
-                ]
-            } else {
-                [p[0], p[1] * (1.0 - k[1] * phi[1]), p[2] - k[1] * pf[1]]
-            };
-        }
-        self.x = [
-            (self.x[0] + dx[0]).max(self.lo[0]).min(self.hi[0]),
-            (self.x[1] + dx[1]).max(self.lo[1]).min(self.hi[1]),
-        ];
-        self.status.rs_at_bound = self.x[0] <= self.lo[0] || self.x[0] >= self.hi[0];
-        self.status.flux_at_bound = self.x[1] <= self.lo[1] || self.x[1] >= self.hi[1];
-    }
-
-    /// The drive's coefficients for the current estimates (`f64`, off the control path), and
-    /// marks them written.
+    /// The drive's coefficients for the current estimates (`f32`, [`MrasModel`]'s `f64`
+    /// reference within a few LSB), and marks them written.
     ///
     /// Errors: [`ConfigError::Gain`] if a coefficient leaves its format (not with the
     /// default bounds on a motor whose drive could be built).
     pub fn coefficients(&mut self) -> Result<ModelCoefficients, ConfigError> {
-        let mut m = self.motor;
-        m.rs_ohm *= self.applied[0] as f64;
-        m.flux_wb *= self.applied[1] as f64;
+        self.written_from(&self.model.decay(self.applied[0]))
+    }
+
+    /// The coefficients at the applied estimates from their decay, marked written.
+    fn written_from(&mut self, decay: &MrasDecay) -> Result<ModelCoefficients, ConfigError> {
+        let s_psi = self.applied[1];
         let c = ModelCoefficients {
-            mras: MrasModel::new(&m, &self.base)?,
-            psi: pu_from_f64(m.flux_wb / self.base.flux_wb),
+            mras: self.model.weights(decay, s_psi)?,
+            psi: Pu::from_bits(libm::roundf(self.psi0 * s_psi * (1u32 << PU_FRAC) as f32) as i32),
         };
         self.written = self.applied;
         Ok(c)

@@ -132,7 +132,7 @@ pub(crate) fn gain(key: &'static str, value: f64) -> Result<Gain, ConfigError> {
     })
 }
 
-pub(crate) use mras_current::MRAS_MODEL_WORDS;
+pub(crate) use mras_current::{MRAS_MODEL_WORDS, MrasDecay, MrasModelScaling};
 pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasModel};
 
 /// Which estimator a drive runs.

@@ -704,7 +704,70 @@ fn run_components(
     report("deadtime", &st);
 
     bench_flux(meter, report);
+    bench_tracker(meter, report);
     Ok(())
+}
+
+/// The tracker of `R` and `ψ` (docs/tracking.md) learning on motor B's steady states at
+/// 0.5 pu of speed and 0.8 pu of q current, the plant's `R` 1.3 times the model's (the
+/// voltages computed outside the count): [`pmsm_core::Tracker::task_step`], the tracker's
+/// share of a task step (a stage of its cycle: a half update, or half the new coefficients),
+/// with the task period's sample on every call as the drive gives it.
+#[inline(never)]
+fn bench_tracker(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
+    let Ok(b) = Setup::motor_b() else { return };
+    let Ok(base) = PerUnit::new(&b.motor, &b.inverter, b.inverter.pwm_hz) else {
+        return;
+    };
+    let mut design = pmsm_core::TrackerDesign::default_for(&base);
+    design.settle_s = 0.0;
+    let Ok(t0) = pmsm_core::Tracker::new(&b.motor, &base, design) else {
+        return;
+    };
+    let (r, lq, psi) = (
+        1.3 * b.motor.rs_ohm / base.impedance_ohm,
+        b.motor.lq_h / base.inductance_h,
+        b.motor.flux_wb / base.flux_wb,
+    );
+    let (omega, iq) = (0.5, 0.8);
+    let step = f64::from(design.interval_samples) * base.omega_e_rad_s * base.sample_s * omega;
+    let input = move |k: u32| {
+        let theta = step * k as f64;
+        let (vd, vq) = (-omega * lq * iq, r * iq + omega * psi);
+        let mid = theta + 0.5 * base.omega_e_rad_s * base.sample_s * omega;
+        let sc = Angle::from_rad(mid).sin_cos();
+        let q30 = 1.0 / (1u64 << 30) as f64;
+        let (s, c) = (sc.sin.to_bits() as f64 * q30, sc.cos.to_bits() as f64 * q30);
+        pmsm_core::TrackerInput {
+            running: true,
+            theta: Angle::from_rad(theta),
+            omega: pu_from_f64(omega),
+            i_dq: Dq {
+                d: Pu::ZERO,
+                q: pu_from_f64(iq),
+            },
+            i_ref: Dq {
+                d: Pu::ZERO,
+                q: pu_from_f64(iq),
+            },
+            v: AlphaBeta {
+                alpha: pu_from_f64(vd * c - vq * s),
+                beta: pu_from_f64(vd * s + vq * c),
+            },
+            saturated: false,
+        }
+    };
+    let mut t = t0;
+    let mut writes = 0u32;
+    let st = bench(
+        meter,
+        TRANSFORM_CALLS,
+        pmsm_core::TrackerInput::default,
+        |s, k| *s = input(k / pmsm_core::TRACKER_STAGES),
+        |s| writes += u32::from(t.task_step(s).is_some()),
+    );
+    report("task_tracker", &st);
+    black_box(writes);
 }
 
 /// The drive's initial position detection and the drive step, on the recorded run.

@@ -41,8 +41,7 @@ impl DriveTask {
         };
         #[cfg(feature = "tracking")]
         if let Some(t) = &mut self.tracker
-            && t.update(&input)
-            && let Ok(c) = t.coefficients()
+            && let Some(c) = t.task_step(&input)
         {
             self.set_model(&c);
         }

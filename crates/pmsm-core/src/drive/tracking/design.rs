@@ -66,16 +66,17 @@ pub struct TrackerDesign {
 }
 
 impl TrackerDesign {
-    /// An update every task period; learning above 10 % of `ω_b`, the current within 0.2 `I_b`
-    /// of its reference, the speed changing by less than `2 ω_b` per second, 10 ms after
-    /// entering `Run`; the model's `R` within ±50 %, `ψ` within
-    /// ±30 % (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB;
-    /// 10 K/√s; 1 % of the base voltage of noise; 1 % per update at most; 20 ms of low-pass
-    /// to the drive; the current's motion (low-passed over 4 ms) weighted 10 times; no
-    /// inverter gate (see [`TrackerDesign::for_drive`]).
+    /// An update every [`TRACKER_STAGES`](super::TRACKER_STAGES) task periods (the drive's
+    /// rate, [`Tracker::task_step`](super::Tracker::task_step)); learning above 10 % of `ω_b`,
+    /// the current within 0.2 `I_b` of its reference, the speed changing by less than `2 ω_b`
+    /// per second, 10 ms after entering `Run`; the model's `R` within ±50 %, `ψ` within ±30 %
+    /// (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB; 10 K/√s; 1 %
+    /// of the base voltage of noise; 1 % per update at most; 20 ms of low-pass to the drive;
+    /// the current's motion (low-passed over 4 ms) weighted 10 times; no inverter gate (see
+    /// [`TrackerDesign::for_drive`]).
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
-            interval_samples: crate::drive::TASK_PERIOD,
+            interval_samples: super::TRACKER_STAGES * crate::drive::TASK_PERIOD,
             min_speed_rad_s: 0.1 * base.omega_e_rad_s,
             max_current_error_a: 0.2 * base.current_a,
             max_accel_rad_s2: 2.0 * base.omega_e_rad_s,

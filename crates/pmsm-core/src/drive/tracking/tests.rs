@@ -5,6 +5,7 @@ extern crate std;
 
 use super::*;
 use crate::fixtures::{inverter_b, motor_b};
+use crate::num::pu_from_f64;
 use std::{format, println};
 
 /// The filter of [`Tracker`] in f64, written from docs/tracking.md: the reference the `f32`
@@ -383,8 +384,9 @@ fn frozen_outside_run_below_the_least_speed_when_saturated_or_in_a_transient() {
     let mut i = input(&s);
     i.running = false;
     check(&mut t, i, Frozen::NotRunning);
-    // 0.01 s at 8 samples of 1/14 kHz: 18 updates settle.
-    for _ in 0..18 {
+    // 0.01 s at an update every 40 samples of 1/14 kHz: 4 updates settle.
+    assert_eq!(t.design().interval_samples, 40);
+    for _ in 0..4 {
         check(&mut t, input(&s), Frozen::Settling);
     }
     let slow = steady(&r, 1.5 * r.r0, 0.8 * r.psi0, 0.05, 1.0, 0.0, 0.0, 0.0);
@@ -407,7 +409,9 @@ fn frozen_outside_run_below_the_least_speed_when_saturated_or_in_a_transient() {
         assert_eq!(t.status().frozen, Frozen::Transient);
     }
     println!("learning again after {first:?} updates");
-    assert!(first.is_some_and(|k| k > 5));
+    // Not before 5 ms (the speed's filter is 20 ms).
+    let dt = f64::from(t.design().interval_samples) / 14e3;
+    assert!(first.is_some_and(|k| k as f64 * dt > 5e-3));
     assert!((0..20).any(|_| t.update(&input(&s))));
 }
 
@@ -447,7 +451,8 @@ fn estimates_stay_within_their_bounds_and_say_so() {
 
 #[test]
 fn written_coefficients_of_the_model_are_the_drive_s_own() {
-    // Unmoved estimates give the bits DriveConfig::new gave: writing them is a no-op.
+    // Unmoved estimates give the coefficients DriveConfig::new gave (in `f64`), within the
+    // task's `f32`: within 2⁻²¹ of each coefficient plus 4 LSB, and 2 LSB in `ψ`.
     let m = motor_b();
     let inv = inverter_b();
     let config =
@@ -457,8 +462,10 @@ fn written_coefficients_of_the_model_are_the_drive_s_own() {
     let crate::observer::EstimatorConfig::MrasCurrent(mras) = config.estimator else {
         panic!("the default estimator is the current-model MRAS");
     };
-    assert_eq!(c.mras, mras.model());
-    assert_eq!(c.psi, config.current.psi());
+    for (got, want) in c.mras.bits().iter().zip(mras.model().bits()) {
+        assert!((got - want).abs() as f64 <= 4.0 + want.abs() as f64 * 2f64.powi(-21));
+    }
+    assert!(c.psi.to_bits().abs_diff(config.current.psi().to_bits()) <= 2);
     // Bad designs name their field.
     let mut d = TrackerDesign::default_for(&config.base);
     d.flux_range = (0.6, 0.9);
@@ -538,4 +545,37 @@ fn a_swinging_current_and_the_inverter_near_zero_current_teach_it_little() {
     t.update(&input(&rated));
     t.update(&input(&rated));
     assert!(t.status().learning, "{:?}", t.status());
+}
+
+/// The drive's cycle of [`TRACKER_STAGES`] task steps computes the bits of one update and of
+/// the write it asks for, and reads its input at the first step only.
+#[test]
+fn the_task_s_stages_are_one_update_and_its_write() {
+    let (mut whole, r) = setup(|_| {});
+    let mut staged = whole;
+    let mut theta = 0.3;
+    let mut writes = 0;
+    let ignored = TrackerInput {
+        running: true,
+        omega: pu_from_f64(0.9),
+        ..TrackerInput::default()
+    };
+    for k in 0..3000 {
+        let (omega, iq) = if k < 1500 { (0.5, 1.0) } else { (0.2, 1.2) };
+        theta += 40.0 * 2.0 * r.half_turn * omega;
+        let s = steady(&r, 1.3 * r.r0, 0.85 * r.psi0, omega, iq, theta, 0.0, 0.0);
+        let i = input(&s);
+        let want = whole.update(&i).then(|| whole.coefficients().unwrap());
+        let mut got = None;
+        for stage in 0..TRACKER_STAGES {
+            if let Some(c) = staged.task_step(if stage == 0 { &i } else { &ignored }) {
+                got = Some(c);
+            }
+        }
+        assert_eq!(got, want, "update {k}");
+        assert_eq!(staged.ratios(), whole.ratios());
+        writes += u32::from(want.is_some());
+    }
+    println!("{writes} writes");
+    assert!(writes > 20, "{writes}");
 }

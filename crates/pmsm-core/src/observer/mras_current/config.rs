@@ -91,7 +91,7 @@ impl Gains {
 
 /// `value` as a `Coef<F>` if it is in `[min, max]` and representable, else the typed error
 /// naming `key` (the motor parameter or gain the coefficient comes from).
-fn coef<const F: u32>(
+pub(super) fn coef<const F: u32>(
     key: &'static str,
     value: f64,
     min: f64,
@@ -110,7 +110,7 @@ fn coef<const F: u32>(
 }
 
 /// A per-unit constant in `[min, max]` as [`Pu`], else the typed error naming `key`.
-fn pu_in(key: &'static str, value: f64, min: f64, max: f64) -> Result<Pu, ConfigError> {
+pub(super) fn pu_in(key: &'static str, value: f64, min: f64, max: f64) -> Result<Pu, ConfigError> {
     if value >= min && value <= max {
         Ok(pu_from_f64(value))
     } else {
@@ -325,156 +325,5 @@ fn gain_err(key: &'static str, value: f64, max: f64) -> ConfigError {
         value,
         min: 0.0,
         max,
-    }
-}
-
-/// The coefficients of [`MrasCurrentConfig`] that depend on the motor's resistance and magnet
-/// flux (the model weights, the offsets `Ψ_d`, `Ψ_q`, `ψ/L_d` of ξ̃ and the scale of
-/// [`MrasCurrent::xi`]): what on-line tracking of `R` and `ψ` rewrites
-/// ([`MrasCurrent::set_model`], docs/tracking.md). Built by [`MrasModel::new`] with the same
-/// expressions as [`MrasCurrentConfig::new`], so the same motor gives the same bits.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MrasModel {
-    xd_i: Coef<MODEL_FRAC>,
-    xd_v: Coef<MODEL_FRAC>,
-    xq_i: Coef<MODEL_FRAC>,
-    xq_v: Coef<MODEL_FRAC>,
-    yq_i: Coef<MODEL_FRAC>,
-    yq_v: Coef<MODEL_FRAC>,
-    yd_i: Coef<MODEL_FRAC>,
-    yd_v: Coef<MODEL_FRAC>,
-    off_d: Pu,
-    off_d_acc: i64,
-    off_q_acc: i64,
-    psi_ld: Pu,
-    xi_scale: Coef<24>,
-}
-
-impl MrasModel {
-    /// The coefficients for `motor` sampled as in `base` (module docs, "Discretisation").
-    ///
-    /// Errors: [`ConfigError::Gain`] naming `ld_h` or `lq_h` for a weight or offset outside
-    /// its format (module docs, "Formats"); `motor` is not otherwise validated here.
-    pub fn new(motor: &MotorParams, base: &PerUnit) -> Result<Self, ConfigError> {
-        let ts = base.sample_s;
-        let (r, ld, lq, psi) = (
-            motor.rs_ohm / base.impedance_ohm,
-            motor.ld_h / base.inductance_h,
-            motor.lq_h / base.inductance_h,
-            motor.flux_wb / base.flux_wb,
-        );
-        let rho = lq / ld;
-        let a_d = libm::exp(-0.5 * motor.rs_ohm * ts / motor.ld_h);
-        let a_q = libm::exp(-0.5 * motor.rs_ohm * ts / motor.lq_h);
-        let (g_d, g_q) = ((1.0 - a_d) / r, (1.0 - a_q) / r);
-        let (psi_d, psi_q) = (psi / ld, psi / lq);
-        let m = |key, v| coef::<MODEL_FRAC>(key, v, 0.0, MODEL_MAX);
-        let off_d = pu_in("ld_h", a_d * psi_d, 0.0, OFFSET_MAX)?;
-        let off_q = pu_in("lq_h", a_q * psi_q, 0.0, OFFSET_MAX)?;
-        Ok(Self {
-            xd_i: m("ld_h", a_d * a_d)?,
-            xd_v: m("ld_h", (1.0 + a_d) * g_d)?,
-            xq_i: m("lq_h", a_d * a_q * rho)?,
-            xq_v: m("lq_h", a_d * rho * g_q + g_d)?,
-            yq_i: m("lq_h", a_q * a_q)?,
-            yq_v: m("lq_h", (1.0 + a_q) * g_q)?,
-            yd_i: m("ld_h", a_q * a_d / rho)?,
-            yd_v: m("ld_h", a_q * g_d / rho + g_q)?,
-            off_d,
-            off_d_acc: (off_d.to_bits() as i64) << MODEL_FRAC,
-            off_q_acc: (off_q.to_bits() as i64) << MODEL_FRAC,
-            psi_ld: pu_in("ld_h", psi_d, 0.0, OFFSET_MAX)?,
-            xi_scale: coef("ld_h", ld / psi, 0.0, Coef::<24>::limit())?,
-        })
-    }
-}
-
-impl MrasCurrentConfig {
-    /// The coefficients of `R` and `ψ` it holds ([`MrasCurrent::set_model`]'s).
-    #[cfg(any(not(feature = "select-estimators"), feature = "mras-current"))]
-    pub(crate) fn model(&self) -> MrasModel {
-        MrasModel {
-            xd_i: self.xd_i,
-            xd_v: self.xd_v,
-            xq_i: self.xq_i,
-            xq_v: self.xq_v,
-            yq_i: self.yq_i,
-            yq_v: self.yq_v,
-            yd_i: self.yd_i,
-            yd_v: self.yd_v,
-            off_d: self.off_d,
-            off_d_acc: self.off_d_acc,
-            off_q_acc: self.off_q_acc,
-            psi_ld: self.psi_ld,
-            xi_scale: self.xi_scale,
-        }
-    }
-}
-
-/// Words of a [`MrasModel`] in the drive's handoff.
-pub(crate) const MRAS_MODEL_WORDS: usize = 15;
-
-impl MrasModel {
-    /// The coefficients as words (the drive's handoff from its task to its interrupt).
-    pub(crate) fn write_words<const N: usize>(&self, w: &mut crate::drive::Packer<N>) {
-        for c in [
-            self.xd_i, self.xd_v, self.xq_i, self.xq_v, self.yq_i, self.yq_v, self.yd_i, self.yd_v,
-        ] {
-            w.i32(c.bits());
-        }
-        w.i32(self.off_d.to_bits());
-        for x in [self.off_d_acc, self.off_q_acc] {
-            w.u32(x as u32);
-            w.u32((x >> 32) as u32);
-        }
-        w.i32(self.psi_ld.to_bits());
-        w.i32(self.xi_scale.bits());
-    }
-
-    /// [`MrasModel::write_words`]'s coefficients.
-    pub(crate) fn read_words<const N: usize>(r: &mut crate::drive::Unpacker<N>) -> Self {
-        let mut c = || Coef::from_bits(r.i32());
-        let (xd_i, xd_v, xq_i, xq_v, yq_i, yq_v, yd_i, yd_v) =
-            (c(), c(), c(), c(), c(), c(), c(), c());
-        let off_d = Pu::from_bits(r.i32());
-        let mut wide = || i64::from(r.u32()) | (i64::from(r.u32()) << 32);
-        let (off_d_acc, off_q_acc) = (wide(), wide());
-        Self {
-            xd_i,
-            xd_v,
-            xq_i,
-            xq_v,
-            yq_i,
-            yq_v,
-            yd_i,
-            yd_v,
-            off_d,
-            off_d_acc,
-            off_q_acc,
-            psi_ld: Pu::from_bits(r.i32()),
-            xi_scale: Coef::from_bits(r.i32()),
-        }
-    }
-}
-
-impl MrasCurrent {
-    /// Replaces the coefficients that depend on `R` and `ψ` (a dozen words; the state is
-    /// kept, so the model current carries on from where it is). Not for the control path:
-    /// call it between two updates (docs/tracking.md).
-    pub fn set_model(&mut self, m: &MrasModel) {
-        let c = &mut self.config;
-        c.xd_i = m.xd_i;
-        c.xd_v = m.xd_v;
-        c.xq_i = m.xq_i;
-        c.xq_v = m.xq_v;
-        c.yq_i = m.yq_i;
-        c.yq_v = m.yq_v;
-        c.yd_i = m.yd_i;
-        c.yd_v = m.yd_v;
-        c.off_d = m.off_d;
-        c.off_d_acc = m.off_d_acc;
-        c.off_q_acc = m.off_q_acc;
-        c.psi_ld = m.psi_ld;
-        c.xi_scale = m.xi_scale;
     }
 }

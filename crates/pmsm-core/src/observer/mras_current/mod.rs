@@ -179,13 +179,15 @@
 
 mod config;
 mod gains;
+mod model;
 #[cfg(test)]
 mod tests;
 mod update;
 
-pub(crate) use config::MRAS_MODEL_WORDS;
-pub use config::{MrasCurrentConfig, MrasModel};
+pub use config::MrasCurrentConfig;
 pub use gains::MrasCurrentGains;
+pub use model::MrasModel;
+pub(crate) use model::{MRAS_MODEL_WORDS, MrasDecay, MrasModelScaling};
 pub use update::MrasCurrent;
 
 use crate::num::PU_FRAC;

@@ -311,3 +311,59 @@ fn a_held_update_follows_the_mechanical_model_alone() {
     let xi = e.xi().to_num::<f64>();
     assert!(xi.abs() > 1e-3, "released: ξ' {xi}");
 }
+
+/// The task's `f32` model against the `f64` reference for the same scaled motor: on motor B,
+/// the family's drone and industrial corners and a slow motor (`R T_s/(2L)` of 10⁻⁶), over
+/// `R/R₀` from 0.5 to 2 and `ψ/ψ₀` from 0.7 to 1.3, every coefficient within 2⁻²¹ of itself
+/// plus 4 LSB, and the pole `1 − a²` within 10⁻⁵ of itself.
+#[test]
+fn the_task_s_scaled_model_is_the_reference_s() {
+    let (b, bb) = motor_b();
+    let mut drone = MotorParams::new(7, 0.02, 0.5e-3, 0.5e-3, 0.002, 2e-5, 1e-6);
+    drone.rated_current_a = Some(60.0);
+    let mut industrial = MotorParams::new(2, 4.0, 0.040, 0.048, 1.2, 0.01, 0.001);
+    industrial.rated_current_a = Some(3.0);
+    let mut slow = b;
+    slow.rs_ohm = 0.02;
+    let cases = [
+        (b, bb),
+        (
+            drone,
+            PerUnit::new(&drone, &inverter(24.0, 150.0), 8e3).unwrap(),
+        ),
+        (
+            industrial,
+            PerUnit::new(&industrial, &inverter(540.0, 10.0), 20e3).unwrap(),
+        ),
+        (slow, bb),
+    ];
+    let (mut worst, mut worst_pole) = (0.0f64, 0.0f64);
+    for (m, base) in cases {
+        let scaling = MrasModelScaling::new(&m, &base);
+        for s_r in [0.5f32, 0.8, 1.0, 1.3, 2.0] {
+            for s_psi in [0.7f32, 1.0, 1.3] {
+                let mut scaled = m;
+                scaled.rs_ohm *= f64::from(s_r);
+                scaled.flux_wb *= f64::from(s_psi);
+                let want = MrasModel::new(&scaled, &base).unwrap().bits();
+                let got = scaling.model(s_r, s_psi).unwrap().bits();
+                for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                    let err = (g - w).abs() as f64;
+                    worst = worst.max(err / (4.0 + w.abs() as f64 * 2f64.powi(-21)));
+                    if k == 0 || k == 4 {
+                        let pole = (1i64 << MODEL_FRAC) - w;
+                        worst_pole = worst_pole.max(err / pole as f64);
+                    }
+                }
+            }
+        }
+    }
+    assert!(worst <= 1.0, "{worst}");
+    assert!(worst_pole <= 1e-5, "{worst_pole}");
+    // A scaling that takes an offset out of its format is named, as the reference names it.
+    let scaling = MrasModelScaling::new(&b, &bb);
+    assert!(matches!(
+        scaling.model(1.0, 1e3),
+        Err(ConfigError::Gain { key: "ld_h", .. })
+    ));
+}
