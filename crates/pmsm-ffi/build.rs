@@ -122,6 +122,7 @@ fn main() {
                 "pmsm_startup_t",
                 "pmsm_deadtime_t",
                 "pmsm_injection_t",
+                "pmsm_option_t",
                 "pmsm_state_t",
                 "pmsm_fault_t",
                 "pmsm_ipd_fault_t",

@@ -314,6 +314,36 @@ typedef uint32_t pmsm_injection_t;
 #endif // __cplusplus
 
 /**
+ * A learner of the drive's task left to its default, turned off or asked for
+ * (`pmsm_config_t.tracking`, `pmsm_config_t.deadtime_learning`).
+ */
+enum pmsm_option_t
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * The library's default for the motor and inverter (0).
+   */
+  PMSM_OPTION_DEFAULT = 0,
+  /**
+   * Off.
+   */
+  PMSM_OPTION_OFF = 1,
+  /**
+   * On; refused (`PMSM_ERR_INVALID_ARGUMENT`) by a library built without it.
+   */
+  PMSM_OPTION_ON = 2,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum pmsm_option_t pmsm_option_t;
+#else
+typedef uint32_t pmsm_option_t;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * What the drive is doing (`pmsm_state_info_t.state`, `pmsm_output_t.state`). The values
  * are the core's `DriveState::code()`; new states get new values, none is renumbered.
  */
@@ -604,6 +634,18 @@ typedef struct {
    * with the cargo feature `injection`).
    */
   uint32_t injection;
+  /**
+   * A `pmsm_option_t` for the tracker of `R` and `psi` in the drive's task (docs/tracking.md;
+   * 0: on with the current-model MRAS, whose model it rewrites, in a library built with the
+   * cargo feature `tracking`).
+   */
+  uint32_t tracking;
+  /**
+   * A `pmsm_option_t` for the learner of the inverter's distortion voltage in the drive's
+   * task (docs/distortion.md; 0: on wherever `dead_time_s` is above 0 and the dead time is
+   * compensated, in a library built with the cargo feature `distortion-learner`).
+   */
+  uint32_t deadtime_learning;
 } pmsm_config_t;
 
 /**
@@ -699,6 +741,39 @@ typedef struct {
    */
   int32_t omega;
 } pmsm_estimate_t;
+
+/**
+ * What the drive's task has learnt (`pmsm_get_learned`).
+ */
+typedef struct {
+  /**
+   * 1 when the drive runs the tracker of `R` and `psi` (`pmsm_config_t.tracking`).
+   */
+  uint32_t tracking;
+  /**
+   * `R/R_0` as the drive's model is given it (`R_0` the configured `rs_ohm`), Q8.24 (1.0
+   * without the tracker).
+   */
+  int32_t rs_ratio;
+  /**
+   * `psi/psi_0` likewise (`psi_0` the configured `flux_wb`), Q8.24.
+   */
+  int32_t flux_ratio;
+  /**
+   * The tracker's updates that learnt since `pmsm_drive_init`.
+   */
+  uint32_t tracker_updates;
+  /**
+   * 1 when the drive runs the learner of the inverter's distortion
+   * (`pmsm_config_t.deadtime_learning`).
+   */
+  uint32_t deadtime_learning;
+  /**
+   * The dead-time compensation's `V_dead` over the configured one, Q8.24 (1.0 until a
+   * calibration or the learner measured it).
+   */
+  int32_t deadtime_scale;
+} pmsm_learned_t;
 
 /**
  * Per-unit bases of a drive, SI (for logs and conversions outside the ISR).
@@ -1101,6 +1176,16 @@ pmsm_status_t pmsm_get_state(pmsm_drive_t *drive, pmsm_state_info_t *out);
  * an interrupt-side read; `out` NULL or pointing to a writable `pmsm_estimate_t`.
  */
 pmsm_status_t pmsm_get_estimate(pmsm_drive_t *drive, pmsm_estimate_t *out);
+
+/**
+ * What the drive's task has learnt: the tracker's `R` and `psi`, the learner's dead-time
+ * scale (task side; `f32` to Q8.24 for the tracker's ratios).
+ *
+ * # Safety
+ * As `pmsm_start` (a task-side function); `out` NULL or pointing to a writable
+ * `pmsm_learned_t`.
+ */
+pmsm_status_t pmsm_get_learned(pmsm_drive_t *drive, pmsm_learned_t *out);
 
 /**
  * The per-unit bases, SI doubles.

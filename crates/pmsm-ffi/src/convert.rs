@@ -2,8 +2,8 @@
 //! C codes. Safe Rust only.
 
 use crate::types::{
-    pmsm_config_t, pmsm_deadtime_t, pmsm_estimator_t, pmsm_injection_t, pmsm_startup_t,
-    pmsm_status_t,
+    pmsm_config_t, pmsm_deadtime_t, pmsm_estimator_t, pmsm_injection_t, pmsm_option_t,
+    pmsm_startup_t, pmsm_status_t,
 };
 use core::f64::consts::TAU;
 use pmsm_core::DeadTimeMode;
@@ -168,6 +168,14 @@ pub(crate) fn build(c: &pmsm_config_t) -> Result<Built, Rejected> {
             allowed: "0 to 2",
         })?;
     injection(c.injection, &mut design)?;
+    let tracker = (cfg!(feature = "tracking"), "tracking");
+    if let Some(on) = option(c.tracking, "tracking", tracker)? {
+        design.tracking = on;
+    }
+    let learner = (cfg!(feature = "distortion-learner"), "distortion-learner");
+    if let Some(on) = option(c.deadtime_learning, "deadtime_learning", learner)? {
+        design.deadtime_learning = on;
+    }
     let period = u16::try_from(c.pwm_period_ticks).map_err(|_| Rejected::Range {
         field: "pwm_period_ticks",
         value: c.pwm_period_ticks,
@@ -259,6 +267,30 @@ fn injection(code: u32, design: &mut DriveDesign) -> Result<(), Rejected> {
     } else {
         let _ = design;
         Ok(())
+    }
+}
+
+/// A `pmsm_option_t` code of `field`: `None` for the default, else off or on (on refused by
+/// a library built without its cargo feature: `(built, feature)`).
+fn option(
+    code: u32,
+    field: &'static str,
+    (built, feature): (bool, &'static str),
+) -> Result<Option<bool>, Rejected> {
+    match code {
+        x if x == pmsm_option_t::PMSM_OPTION_DEFAULT as u32 => Ok(None),
+        x if x == pmsm_option_t::PMSM_OPTION_OFF as u32 => Ok(Some(false)),
+        x if x == pmsm_option_t::PMSM_OPTION_ON as u32 && built => Ok(Some(true)),
+        x if x == pmsm_option_t::PMSM_OPTION_ON as u32 => Err(Rejected::NotBuilt {
+            field,
+            value: x,
+            feature,
+        }),
+        x => Err(Rejected::Range {
+            field,
+            value: x,
+            allowed: "0 to 2 (DEFAULT, OFF, ON)",
+        }),
     }
 }
 

@@ -1,11 +1,11 @@
-//! Read access to a drive: state and fault, estimate, telemetry, initial position, bases,
-//! the fault record.
+//! Read access to a drive: state and fault, estimate, telemetry, initial position, what the
+//! task learnt, bases, the fault record.
 //! Integer only except `pmsm_get_bases`; none of them changes the drive.
 #![allow(unsafe_code)]
 
 use crate::convert;
 use crate::handle::pmsm_drive_t;
-use crate::handle::{drive, isr_side, put};
+use crate::handle::{drive, isr_side, put, task_side};
 use crate::types::*;
 use core::ffi::{CStr, c_char};
 
@@ -65,6 +65,58 @@ pub unsafe extern "C" fn pmsm_get_estimate(
             },
         )
     }
+}
+
+/// What the drive's task has learnt: the tracker's `R` and `psi`, the learner's dead-time
+/// scale (task side; `f32` to Q8.24 for the tracker's ratios).
+///
+/// # Safety
+/// As `pmsm_start` (a task-side function); `out` NULL or pointing to a writable
+/// `pmsm_learned_t`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn pmsm_get_learned(
+    drive: *mut pmsm_drive_t,
+    out: *mut pmsm_learned_t,
+) -> pmsm_status_t {
+    // SAFETY: forwarded contract.
+    let (t, _) = match unsafe { task_side(drive) } {
+        Ok(t) => t,
+        Err(e) => return e,
+    };
+    let q24 = |x: f32| (x * (1u32 << 24) as f32) as i32;
+    let tracker = tracked(t);
+    let ((rs, flux), updates) = tracker.unwrap_or(((1.0, 1.0), 0));
+    #[cfg(feature = "distortion-learner")]
+    let learner = t.learner().is_some();
+    #[cfg(not(feature = "distortion-learner"))]
+    let learner = false;
+    // SAFETY: forwarded contract.
+    unsafe {
+        put(
+            out,
+            pmsm_learned_t {
+                tracking: u32::from(tracker.is_some()),
+                rs_ratio: q24(rs),
+                flux_ratio: q24(flux),
+                tracker_updates: updates,
+                deadtime_learning: u32::from(learner),
+                deadtime_scale: t.deadtime_scale().to_bits(),
+            },
+        )
+    }
+}
+
+/// The tracker's `(R/R_0, psi/psi_0)` as the drive is given them and its updates that learnt,
+/// when the drive runs one.
+#[cfg(feature = "tracking")]
+fn tracked(t: &pmsm_core::DriveTask) -> Option<((f32, f32), u32)> {
+    t.tracker().map(|k| (k.applied(), k.status().learnt))
+}
+
+/// Without the feature: no tracker.
+#[cfg(not(feature = "tracking"))]
+fn tracked(_: &pmsm_core::DriveTask) -> Option<((f32, f32), u32)> {
+    None
 }
 
 /// The per-unit bases, SI doubles.

@@ -105,6 +105,19 @@ pub enum pmsm_injection_t {
     PMSM_INJECTION_ON = 2,
 }
 
+/// A learner of the drive's task left to its default, turned off or asked for
+/// (`pmsm_config_t.tracking`, `pmsm_config_t.deadtime_learning`).
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum pmsm_option_t {
+    /// The library's default for the motor and inverter (0).
+    PMSM_OPTION_DEFAULT = 0,
+    /// Off.
+    PMSM_OPTION_OFF = 1,
+    /// On; refused (`PMSM_ERR_INVALID_ARGUMENT`) by a library built without it.
+    PMSM_OPTION_ON = 2,
+}
+
 /// What the drive is doing (`pmsm_state_info_t.state`, `pmsm_output_t.state`). The values
 /// are the core's `DriveState::code()`; new states get new values, none is renumbered.
 #[repr(u32)]
@@ -256,6 +269,14 @@ pub struct pmsm_config_t {
     /// A `pmsm_injection_t` (0: on where the motor's saliency allows it, in a library built
     /// with the cargo feature `injection`).
     pub injection: u32,
+    /// A `pmsm_option_t` for the tracker of `R` and `psi` in the drive's task (docs/tracking.md;
+    /// 0: on with the current-model MRAS, whose model it rewrites, in a library built with the
+    /// cargo feature `tracking`).
+    pub tracking: u32,
+    /// A `pmsm_option_t` for the learner of the inverter's distortion voltage in the drive's
+    /// task (docs/distortion.md; 0: on wherever `dead_time_s` is above 0 and the dead time is
+    /// compensated, in a library built with the cargo feature `distortion-learner`).
+    pub deadtime_learning: u32,
 }
 
 /// The measurements of one control sample, Q8.24 per unit (`2^24` = 1.0 pu).
@@ -379,6 +400,27 @@ pub struct pmsm_ipd_t {
     pub fault: u32,
     /// The measurements of that check, Q8.24 pu (see `pmsm_ipd_fault_t`), 0 if none.
     pub fault_value: [i32; 2],
+}
+
+/// What the drive's task has learnt (`pmsm_get_learned`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct pmsm_learned_t {
+    /// 1 when the drive runs the tracker of `R` and `psi` (`pmsm_config_t.tracking`).
+    pub tracking: u32,
+    /// `R/R_0` as the drive's model is given it (`R_0` the configured `rs_ohm`), Q8.24 (1.0
+    /// without the tracker).
+    pub rs_ratio: i32,
+    /// `psi/psi_0` likewise (`psi_0` the configured `flux_wb`), Q8.24.
+    pub flux_ratio: i32,
+    /// The tracker's updates that learnt since `pmsm_drive_init`.
+    pub tracker_updates: u32,
+    /// 1 when the drive runs the learner of the inverter's distortion
+    /// (`pmsm_config_t.deadtime_learning`).
+    pub deadtime_learning: u32,
+    /// The dead-time compensation's `V_dead` over the configured one, Q8.24 (1.0 until a
+    /// calibration or the learner measured it).
+    pub deadtime_scale: i32,
 }
 
 /// Per-unit bases of a drive, SI (for logs and conversions outside the ISR).

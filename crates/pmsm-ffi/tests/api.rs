@@ -412,3 +412,67 @@ fn injection_is_on_by_default_where_the_motor_allows_it() {
     );
     assert!(injection_message(&bad).contains("`injection` is 3"));
 }
+
+/// What the task learnt, read through the C interface.
+fn learned(c: &pmsm_config_t) -> pmsm_learned_t {
+    let mut s = storage();
+    let d = init(&mut s, c).expect("init");
+    let mut out = pmsm_learned_t::default();
+    // SAFETY: a live handle and a writable out pointer.
+    assert_eq!(
+        unsafe { pmsm_get_learned(d, &mut out) },
+        pmsm_status_t::PMSM_OK
+    );
+    out
+}
+
+#[test]
+#[cfg(all(feature = "tracking", feature = "distortion-learner"))]
+fn the_task_s_learners_are_on_by_default_and_each_can_be_turned_off() {
+    use pmsm_option_t::*;
+    let one = 1 << 24;
+    // Motor B with the current-model MRAS and 2 µs of dead time: both on, nothing learnt yet.
+    let default = scenario::config_c();
+    let l = learned(&default);
+    assert_eq!((l.tracking, l.deadtime_learning), (1, 1));
+    assert_eq!(
+        (l.rs_ratio, l.flux_ratio, l.deadtime_scale),
+        (one, one, one)
+    );
+    assert_eq!(l.tracker_updates, 0);
+    let with = |tracking: pmsm_option_t, learning: pmsm_option_t| {
+        let mut c = default;
+        c.tracking = tracking as u32;
+        c.deadtime_learning = learning as u32;
+        learned(&c)
+    };
+    let on = with(PMSM_OPTION_ON, PMSM_OPTION_ON);
+    assert_eq!((on.tracking, on.deadtime_learning), (1, 1));
+    let off = with(PMSM_OPTION_OFF, PMSM_OPTION_DEFAULT);
+    assert_eq!((off.tracking, off.deadtime_learning), (0, 1));
+    let off = with(PMSM_OPTION_DEFAULT, PMSM_OPTION_OFF);
+    assert_eq!((off.tracking, off.deadtime_learning), (1, 0));
+    // Without a dead time the learner has nothing to learn: off by default.
+    let mut ideal = default;
+    ideal.dead_time_s = 0.0;
+    assert_eq!(learned(&ideal).deadtime_learning, 0);
+    // An unknown code is named.
+    // SAFETY: valid config pointers.
+    let check = |c: &pmsm_config_t| unsafe { pmsm_config_check(c) };
+    for field in ["tracking", "deadtime_learning"] {
+        let mut bad = default;
+        if field == "tracking" {
+            bad.tracking = 3;
+        } else {
+            bad.deadtime_learning = 3;
+        }
+        assert_eq!(check(&bad), pmsm_status_t::PMSM_ERR_INVALID_ARGUMENT);
+        let m = message(&bad);
+        assert!(m.contains(&format!("`{field}` is 3")), "{m}");
+    }
+    // A NULL drive or output is refused.
+    let mut out = pmsm_learned_t::default();
+    // SAFETY: NULL handle, valid out pointer.
+    let r = unsafe { pmsm_get_learned(core::ptr::null_mut(), &mut out) };
+    assert_ne!(r, pmsm_status_t::PMSM_OK);
+}
