@@ -238,36 +238,27 @@ fn estimator(code: u32, motor: &MotorParams) -> Result<EstimatorKind, Rejected> 
     }
 }
 
-/// Sets the design's injection from a `pmsm_injection_t` code.
+// `injection` reads a `pmsm_injection_t` as a `pmsm_option_t`: the same codes.
+const _: () = assert!(
+    pmsm_injection_t::PMSM_INJECTION_DEFAULT as u32 == pmsm_option_t::PMSM_OPTION_DEFAULT as u32
+        && pmsm_injection_t::PMSM_INJECTION_OFF as u32 == pmsm_option_t::PMSM_OPTION_OFF as u32
+        && pmsm_injection_t::PMSM_INJECTION_ON as u32 == pmsm_option_t::PMSM_OPTION_ON as u32
+);
+
+/// Sets the design's injection from a `pmsm_injection_t` code (the codes of a
+/// `pmsm_option_t`).
 fn injection(code: u32, design: &mut DriveDesign) -> Result<(), Rejected> {
-    let on = match code {
-        x if x == pmsm_injection_t::PMSM_INJECTION_DEFAULT as u32 => return Ok(()),
-        x if x == pmsm_injection_t::PMSM_INJECTION_OFF as u32 => false,
-        x if x == pmsm_injection_t::PMSM_INJECTION_ON as u32 => true,
-        x => {
-            return Err(Rejected::Range {
-                field: "injection",
-                value: x,
-                allowed: "0 to 2 (DEFAULT, OFF, ON)",
-            });
-        }
+    let built = (cfg!(feature = "injection"), "injection");
+    let Some(on) = option(code, "injection", built)? else {
+        return Ok(());
     };
     #[cfg(feature = "injection")]
     {
         design.injection = on.then(pmsm_core::InjectionDesign::required);
-        Ok(())
     }
     #[cfg(not(feature = "injection"))]
-    if on {
-        Err(Rejected::NotBuilt {
-            field: "injection",
-            value: code,
-            feature: "injection",
-        })
-    } else {
-        let _ = design;
-        Ok(())
-    }
+    let _ = (on, design);
+    Ok(())
 }
 
 /// A `pmsm_option_t` code of `field`: `None` for the default, else off or on (on refused by

@@ -716,9 +716,7 @@ fn run_components(
 #[inline(never)]
 fn bench_tracker(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
     let Ok(b) = Setup::motor_b() else { return };
-    let Ok(base) = PerUnit::new(&b.motor, &b.inverter, b.inverter.pwm_hz) else {
-        return;
-    };
+    let base = b.base;
     let mut design = pmsm_core::TrackerDesign::default_for(&base);
     design.settle_s = 0.0;
     let Ok(t0) = pmsm_core::Tracker::new(&b.motor, &base, design) else {

@@ -5,8 +5,8 @@
 use super::{Frozen, SPEED_HYSTERESIS, Tracker, TrackerInput, pu, sin_cos_f32, toward};
 use crate::angle::Angle;
 
-/// What the first half of an update keeps for the second: the sample's angle, speed (per
-/// unit), current in the estimated frame and voltage (αβ, per unit).
+/// What the gates pass on to the measurement: the sample's angle, speed (per unit), current
+/// in the estimated frame and voltage (αβ, per unit).
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Sample {
     theta: Angle,
@@ -25,8 +25,8 @@ pub(super) struct Measurement {
 }
 
 impl Tracker {
-    /// The first half of an update: the filters, the drift and the gates on `input`; the
-    /// sample the second half learns from, if every gate is open.
+    /// The first part of an update: the filters, the drift and the gates on `input`; the
+    /// sample the measurement takes, if every gate is open.
     pub(super) fn begin(&mut self, input: &TrackerInput) -> Option<Sample> {
         self.status.learning = false;
         let w_hat = pu(input.omega);
