@@ -158,7 +158,11 @@ pub struct DriveDesign {
     pub mras_current: MrasCurrentGains,
     /// Current loops.
     pub current: CurrentDesign,
-    /// Speed loop.
+    /// Speed loop. Default: [`SpeedDesign::default_for`]'s, at 40 % with a back-EMF estimator,
+    /// raised to a light rotor's `4/τ_b` within `0.005/T_s` (not the MRAS on the EMF), and
+    /// with the current-model MRAS at most `1/(2ζ ε τ_m)`, `ε` =
+    /// [`SPEED_LOOP_R_ERROR`](crate::tuning::SPEED_LOOP_R_ERROR) (docs/drive.md, "speed loop:
+    /// the resistance's error").
     pub speed: SpeedDesign,
     /// Bandwidth of the speed loop above twice the open loop's handover speed, rad/s, where
     /// the back-EMF estimate is clean enough for a light rotor's stiff loop; `None`: `speed`'s
@@ -281,6 +285,23 @@ pub fn stiff_bandwidth_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
         / (motor.j_kg_m2 * base.omega_e_rad_s)
 }
 
+/// Relative error of the winding resistance the speed loop of a speed-adaptive estimator
+/// stays stable with: copper's rise over 100 K (0.39 %/K), a winding measured cold and run hot.
+/// The drive's default bandwidth with the current-model MRAS is at most `1/(2ζ ε τ_m)`,
+/// `τ_m = J R/(K_T p ψ)` (docs/drive.md, "speed loop: the resistance's error").
+pub const SPEED_LOOP_R_ERROR: f64 = 0.4;
+
+/// Largest speed-loop bandwidth, rad/s, at which a resistance error of
+/// [`SPEED_LOOP_R_ERROR`] leaves the loop stable, for `damping` `ζ`: `1/(2ζ ε τ_m)`,
+/// `τ_m = J R/(K_T p ψ)` the motor's electromechanical time constant. An estimator that adapts
+/// its speed to the voltage balance reads the q voltage `ΔR i_q` its model misses as a speed
+/// `ΔR i_q/ψ`: a second path from the loop's current to its feedback, which turns the loop's
+/// sign once `K_pΩ ΔR/ψ` reaches one (docs/drive.md, "speed loop: the resistance's error").
+pub fn resistance_bandwidth_rad_s(motor: &MotorParams, damping: f64) -> f64 {
+    let tau_m = motor.j_kg_m2 * motor.rs_ohm / (motor.kt_nm_per_a * motor.p() * motor.flux_wb);
+    1.0 / (2.0 * damping * SPEED_LOOP_R_ERROR * tau_m)
+}
+
 /// Longest PWM update delay the drive compensates, control samples.
 pub const MAX_PWM_DELAY_SAMPLES: u8 = 2;
 
@@ -353,6 +374,14 @@ impl DriveDesign {
                         .bandwidth_rad_s
                         .max(stiff_bandwidth_rad_s(motor, base))
                         .min(SPEED_BANDWIDTH_MAX_TS / base.sample_s);
+                }
+                // A speed adapted to the voltage balance reads the resistance's error as speed.
+                // Not the MRAS on the EMF, whose own loop is slower still: bounded, it lost
+                // motor A's start (its adaptation's slow root, above).
+                if estimator == EstimatorKind::MrasCurrent {
+                    d.bandwidth_rad_s = d
+                        .bandwidth_rad_s
+                        .min(resistance_bandwidth_rad_s(motor, d.damping));
                 }
                 d
             },

@@ -61,8 +61,9 @@ fn a_build_without_the_detection_aligns_and_refuses_it() {
     assert!(std::format!("{e}").contains("startup"), "{e}");
 }
 
-/// The speed loop's default bandwidth: the sample rate's on motor B (a heavy rotor), raised
-/// to `4/τ_b` on a light one and capped at `0.005/T_s`; the dip under a step of base torque
+/// The speed loop's default bandwidth: the sample rate's on motor B (a heavy rotor; with the
+/// current-model MRAS the resistance's bound, below it), raised to `4/τ_b` on a light one and
+/// capped at `0.005/T_s`; the dip under a step of base torque
 /// (`ω_b/(e ω_n τ_b)`, a fraction of base speed) is at most a tenth wherever the cap allows.
 #[test]
 fn a_light_rotor_gets_a_stiffer_speed_loop() {
@@ -73,11 +74,16 @@ fn a_light_rotor_gets_a_stiffer_speed_loop() {
         (d.speed.bandwidth_rad_s, tau_b, base.sample_s)
     };
     let (b, inv_b) = (motor_b(), inverter_b());
-    for (kind, share) in [(EstimatorKind::MrasCurrent, 1.0), (EstimatorKind::Nlo, 0.4)] {
-        let (w, tau_b, ts) = bandwidth(&b, &inv_b, kind);
-        assert!(4.0 / tau_b < w, "{kind:?}: {tau_b}");
-        assert!((w - share * 0.005 / ts).abs() < 1e-9, "{kind:?}: {w}");
-    }
+    let (w, tau_b, ts) = bandwidth(&b, &inv_b, EstimatorKind::Nlo);
+    assert!(4.0 / tau_b < w, "{tau_b}");
+    assert!((w - 0.4 * 0.005 / ts).abs() < 1e-9, "{w}");
+    // The current-model MRAS's: the resistance's bound, below the sample rate's.
+    let (w, tau_b, ts) = bandwidth(&b, &inv_b, EstimatorKind::MrasCurrent);
+    assert!(4.0 / tau_b < w && w < 0.005 / ts, "{w} {tau_b}");
+    assert!(
+        (w - resistance_bandwidth_rad_s(&b, 1.0)).abs() < 1e-9,
+        "{w}"
+    );
     // A gimbal motor at 25 kHz with a camera of six times its rotor's inertia: 4/τ_b (the
     // dip a tenth of base speed).
     let mut gimbal = MotorParams::new(11, 5.55, 1.4e-3, 1.4e-3, 0.01856, 1e-4, 1e-6);
@@ -101,6 +107,44 @@ fn a_light_rotor_gets_a_stiffer_speed_loop() {
     // The MRAS on the EMF keeps its own (its speed is its adaptation's).
     let (w, _, ts) = bandwidth(&gimbal, &inv, EstimatorKind::MrasEmf);
     assert!((w - 0.4 * 0.005 / ts).abs() < 1e-9, "{w}");
+}
+
+/// With the speed-adaptive estimators the designed speed loop keeps `K_pΩ ε R/ψ`, the gain of
+/// the path from its current through the resistance's error `ε R` to the estimated speed,
+/// below one for `ε` up to `SPEED_LOOP_R_ERROR`, on motors light and heavy; the sample rate's
+/// bandwidth on motor B would not (1.2).
+#[test]
+fn the_speed_loop_survives_the_resistance_s_error() {
+    let gain = |m: &MotorParams, inv: &InverterParams, kind, bandwidth: Option<f64>| {
+        let base = PerUnit::new(m, inv, inv.pwm_hz).unwrap();
+        let mut d = DriveDesign::default_for(m, inv, &base, kind);
+        if let Some(w) = bandwidth {
+            d.speed.bandwidth_rad_s = w;
+        }
+        let config = DriveConfig::new(m, inv, inv.pwm_hz, d).unwrap();
+        // K_pΩ in A per electrical rad/s; the speed error ΔR i_q/ψ in electrical rad/s.
+        config.speed.gains_si.1 * SPEED_LOOP_R_ERROR * m.rs_ohm / m.flux_wb
+    };
+    let (b, inv) = (motor_b(), inverter_b());
+    // The current-model MRAS at the bound; the MRAS on the EMF below it (its own, slower).
+    let g = gain(&b, &inv, EstimatorKind::MrasCurrent, None);
+    assert!(g < 1.0 && g > 0.9, "{g}");
+    let g = gain(&b, &inv, EstimatorKind::MrasEmf, None);
+    assert!(g < 0.7, "{g}");
+    let mut heavy = b;
+    heavy.j_kg_m2 *= 10.0;
+    let g = gain(&heavy, &inv, EstimatorKind::MrasCurrent, None);
+    assert!(g < 1.0 && g > 0.9, "{g}");
+    let mut light = b;
+    light.j_kg_m2 /= 10.0;
+    assert!(gain(&light, &inv, EstimatorKind::MrasCurrent, None) < 0.5);
+    let g = gain(
+        &b,
+        &inv,
+        EstimatorKind::MrasCurrent,
+        Some(0.005 * inv.pwm_hz),
+    );
+    assert!(g > 1.1, "{g}");
 }
 
 /// The MRAS on the EMF hands over where its adaptation's loop `s² + (|ω|/c3) s + ψ² c2 |ω|`
