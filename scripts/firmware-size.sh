@@ -8,6 +8,11 @@
 #     examples/b-g431b-esc1/size-snapshot.txt by more than SIZE_TOLERANCE_PCT (default 5) %
 #     (a section under 1 KiB may move by up to 64 bytes).
 # BLESS=1 rewrites the snapshot instead of comparing with it.
+# Then builds the same firmware for an interior motor (a copy in the target directory with
+# motor C of examples/motor-c-24v.toml in src/motor.rs, and pmsm-core's features for it: the
+# current-model MRAS, the initial position detection, the tracker of R and psi and the learner
+# of the inverter's distortion, the defaults with that estimator) and fails if its flash
+# exceeds 64 KiB as well.
 #
 # Needs: rustup target add thumbv7em-none-eabihf; arm-none-eabi-size
 #        (apt-get install -y binutils-arm-none-eabi).
@@ -44,6 +49,45 @@ if ((flash > flash_max)); then
 fi
 if ((ram > ram_max)); then
   echo "firmware-size: FAIL: static RAM $ram > $ram_max bytes" >&2
+  status=1
+fi
+
+# The interior variant: its own binary name, so that it shares the target directory (and the
+# compiled dependencies) without replacing the default image that scripts/no-panic.sh reads.
+variant="$target_dir/interior-variant"
+rm -rf "$variant"
+mkdir -p "$variant"
+cp -r "$fw/src" "$fw/build.rs" "$fw/Cargo.toml" "$fw/Cargo.lock" "$variant/"
+sed -i -e "s#\.\./\.\./#$root/#g" \
+  -e 's/"select-estimators", "nlo", "distortion-learner"/"select-estimators", "mras-current", "ipd", "tracking", "distortion-learner"/' \
+  -e 's/^name = "b-g431b-esc1"$/name = "b-g431b-esc1-interior"/' "$variant/Cargo.toml"
+sed -i "s#\.\./\.\./memory.x#$root/memory.x#" "$variant/build.rs"
+sed -i -E -e 's/(POLE_PAIRS: u32 =) [^;]+;/\1 4;/' -e 's/(RS_OHM: f64 =) [^;]+;/\1 0.1;/' \
+  -e 's/(LD_H: f64 =) [^;]+;/\1 0.0003;/' -e 's/(LQ_H: f64 =) [^;]+;/\1 0.0005;/' \
+  -e 's/(FLUX_WB: f64 =) [^;]+;/\1 0.01323;/' -e 's/(RATED_A_RMS: f64 =) [^;]+;/\1 25.0;/' \
+  -e 's/(J_KG_M2: f64 =) [^;]+;/\1 0.001;/' -e 's/(B_NM_S: f64 =) [^;]+;/\1 0.00001;/' \
+  -e 's/(VDC_V: f64 =) [^;]+;/\1 24.0;/' "$variant/src/motor.rs"
+if [[ $(grep -c '"mras-current", "ipd", "tracking"' "$variant/Cargo.toml") != 2 ]] ||
+  ! grep -q '^name = "b-g431b-esc1-interior"$' "$variant/Cargo.toml" ||
+  ! grep -q 'LQ_H: f64 = 0.0005;' "$variant/src/motor.rs"; then
+  echo "firmware-size: FAIL: could not make the interior variant (Cargo.toml or motor.rs changed shape)" >&2
+  exit 1
+fi
+(cd "$variant" && cargo build --release --locked --config "$fw/.cargo/config.toml" \
+  --target-dir "$target_dir" >&2)
+velf="$target_dir/thumbv7em-none-eabihf/release/b-g431b-esc1-interior"
+read -r vtext vdata vbss < <(arm-none-eabi-size -B "$velf" | awk 'NR == 2 { print $1, $2, $3 }')
+vflash=$((vtext + vdata))
+vram=$((vdata + vbss))
+printf 'firmware b-g431b-esc1, interior motor (mras-current, ipd, tracking, distortion-learner): flash %d of %d bytes (%d.%d %%), static RAM %d of %d bytes (%d.%d %%)\n' \
+  "$vflash" "$flash_max" $((vflash * 100 / flash_max)) $((vflash * 1000 / flash_max % 10)) \
+  "$vram" "$ram_max" $((vram * 100 / ram_max)) $((vram * 1000 / ram_max % 10))
+if ((vflash > flash_max)); then
+  echo "firmware-size: FAIL: interior variant's flash $vflash > $flash_max bytes" >&2
+  status=1
+fi
+if ((vram > ram_max)); then
+  echo "firmware-size: FAIL: interior variant's static RAM $vram > $ram_max bytes" >&2
   status=1
 fi
 

@@ -21,7 +21,9 @@ use crate::num::{UNIT_FRAC, Unit, round_shift, round_shift_sat, wmul_inline};
 use core::ops::{Add, Neg, Sub};
 
 /// Electrical angle, one turn = 2³² (LSB = 2π/2³² ≈ 1.46e−9 rad), range [−π, π), wrapping.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, crate::image::Words,
+)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Angle(pub i32);
 

@@ -52,7 +52,7 @@ use crate::params::{InverterParams, MotorParams, ParamError, ParamReason, in_ran
 use crate::units::PerUnit;
 
 /// Where the compensation is applied (module docs).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DeadTimeMode {
     /// No compensation.
@@ -80,7 +80,7 @@ impl DeadTimeMode {
 
 /// Which current the drive passes to [`DeadTimeConfig::error_vector`] (docs/drive.md,
 /// "dead-time compensation: which current's sign").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CurrentSource {
     /// The measured current, in the controller's frame turned to the middle of the period the
@@ -105,7 +105,7 @@ pub enum CurrentSource {
 pub const MEASURED_SIGN_BANDS: u32 = 6;
 
 /// Switching-device parameters beyond [`InverterParams`] (SI; zero for ideal devices).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, crate::image::Words)]
 pub struct DeviceParams {
     /// Switch turn-on delay `T_on`, s.
     pub t_on_s: f64,
@@ -118,7 +118,7 @@ pub struct DeviceParams {
 }
 
 /// How the compensation is set up; [`DeadTimeDesign::default_for`] gives the defaults.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct DeadTimeDesign {
     /// Device delays and drops.
     pub device: DeviceParams,
@@ -145,7 +145,7 @@ impl DeadTimeDesign {
 }
 
 /// Configuration of the compensation.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct DeadTimeConfig {
     /// `T_eff f_PWM` (dimensionless): the part of `V_dead` proportional to the bus.
     k_bus: Coef<31>,

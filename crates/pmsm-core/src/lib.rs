@@ -57,9 +57,10 @@
 //!
 //! What is where:
 //!
-//! - the drive: [`Drive`], [`DriveConfig`] (from [`DriveOptions`] or a full [`DriveDesign`]),
-//!   its states and faults, and the hardware traits a board implements ([`ThreePhasePwm`],
-//!   [`PhaseCurrentSampler`], [`control_step`]);
+//! - the drive: [`Drive`], [`DriveConfig`] (from [`DriveOptions`] or a full [`DriveDesign`],
+//!   or from the image of one designed on the host, [`DriveConfig::from_image`],
+//!   docs/image.md), its states and faults, and the hardware traits a board implements
+//!   ([`ThreePhasePwm`], [`PhaseCurrentSampler`], [`control_step`]);
 //! - the estimators behind [`Estimator`]: [`Nlo`], [`Ao`], [`MrasEmf`] (Solsona, Valla,
 //!   Muravchik (2000)) and [`MrasCurrent`] (Khlaief, Boussak, Gossa (2012)), each built from its
 //!   configuration of coefficients;
@@ -101,6 +102,7 @@ pub mod fixtures;
 mod frames;
 mod hal;
 mod identify;
+mod image;
 mod ipd;
 mod num;
 mod observer;
@@ -134,6 +136,7 @@ pub use hal::{DutyCyclePwm, PhaseCurrentSampler, PwmErrors, ThreePhasePwm, apply
 pub use identify::{
     Identified, Identify, IdentifyConfig, IdentifyDesign, IdentifyError, IdentifyOutput, Stage,
 };
+pub use image::{IMAGE_MAGIC, ImageError};
 pub use ipd::{Ipd, IpdConfig, IpdDesign, IpdFault, IpdOutput, IpdResult};
 pub use num::{PU_FRAC, Pu, UNIT_FRAC, Unit, mul, mul_unit, pu_from_f64};
 #[cfg(feature = "injection")]

@@ -9,7 +9,7 @@ use core::fmt;
 /// Parameters of a permanent-magnet synchronous motor (SI units, electrical angle).
 ///
 /// `ld_h == lq_h` is a surface motor (Solsona, Valla, Muravchik (2000)), `ld_h < lq_h` an interior one (Khlaief, Boussak, Gossa (2012)).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct MotorParams {
     /// Pole pairs `p` (mechanical speed `ω_m = ω / p`).
     pub pole_pairs: u32,

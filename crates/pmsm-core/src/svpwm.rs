@@ -108,7 +108,7 @@ pub const DEFAULT_VDC_MIN_PU: f64 = 0.01 * 1.732_050_807_568_877_2;
 pub const OVERMOD_SIX_STEP_REQUEST: f64 = 0.75;
 
 /// Configuration of the modulator.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct SvpwmConfig {
     /// `m/√3` in Q1.31 (`2/3` with overmodulation: the vertex).
     vmax_per_vdc_q31: i32,

@@ -48,7 +48,7 @@ use crate::num::{PU_FRAC, Pu, pu_from_f64};
 use crate::params::{InverterParams, MotorParams, positive};
 
 /// Base values of the per-unit system (SI units) and the control sample period.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct PerUnit {
     /// Base voltage `V_b`, V (phase peak).
     pub voltage_v: f64,

@@ -15,35 +15,13 @@
 //! | potentiometer | PB12 | ADC1_IN11 |
 //! | user button | PC10 | GPIO input, pull-up, pressed = low (NOT VERIFIED against the schematic) |
 
-use pmsm_stm32::adc::{AdcSpec, CurrentSensing, VoltageSensing};
+pub use crate::sensing::{CURRENT, VBUS};
 use pmsm_stm32::hw::InjectedChannels;
 use pmsm_stm32::regs::{BreakSource, PgaGain};
 use stm32g4::stm32g431 as pac;
 
-/// The ADC: 12 bits, VREF+ = VDDA = 3.3 V.
-pub const ADC: AdcSpec = AdcSpec {
-    vref_v: 3.3,
-    bits: 12,
-};
-
-/// Phase-current sensing: 3 mΩ low-side shunts, overall gain −64/7 (OPAMP PGA ×16 behind
-/// the board's input network; negative: a positive phase current lowers the reading).
-pub const CURRENT: CurrentSensing = CurrentSensing {
-    adc: ADC,
-    shunt_ohm: 0.003,
-    gain: -64.0 / 7.0,
-};
-
 /// The OPAMPs' PGA gain (the board's resistor network makes the overall −64/7).
 pub const PGA_GAIN: PgaGain = PgaGain::X16;
-
-/// Bus voltage divider. NOT VERIFIED against the schematic: 169 kΩ over 18 kΩ (ratio
-/// 0.0963, 34 V full scale, enough for the 6S battery the board is made for); check R and
-/// correct this value, or the drive trips on bus under/over-voltage.
-pub const VBUS: VoltageSensing = VoltageSensing {
-    adc: ADC,
-    divider: 18.0 / (169.0 + 18.0),
-};
 
 /// ADC channels.
 pub const CHANNELS: InjectedChannels = InjectedChannels {

@@ -34,6 +34,21 @@
 
 mod board;
 mod motor;
+mod sensing;
+
+/// The drive designed by build.rs for `motor.rs` (`DRIVE_IMAGE`, `DRIVE_IMAGE_SCHEMA`).
+mod image {
+    include!(concat!(env!("OUT_DIR"), "/drive_image.rs"));
+}
+
+// build.rs designed the drive with pmsm-core built for the host with the build-dependency's
+// features: they must be the firmware's (Cargo.toml).
+const _: () = assert!(
+    image::DRIVE_IMAGE_SCHEMA == pmsm_core::DriveConfig::IMAGE_SCHEMA
+        && image::DRIVE_IMAGE.len() == pmsm_core::DriveConfig::IMAGE_WORDS,
+    "the drive image is of another pmsm-core build: give pmsm-core the same features under \
+     [dependencies] and [build-dependencies] in Cargo.toml"
+);
 
 use defmt_rtt as _;
 use panic_probe as _;
@@ -47,30 +62,9 @@ fn halt(why: &str) -> ! {
     }
 }
 
-// The one estimator built in (Cargo.toml: pmsm-core's feature `nlo`) is the one the defaults
-// choose for the motor of motor.rs, a surface motor (`EstimatorKind::for_motor`), started by
-// the alignment (the image has no initial position detection). An interior motor gets the
-// current-model MRAS and the detection: build pmsm-core with `mras-current` and `ipd` instead
-// (README.md, "Size"). `MotorParams::saliency` written out: a const check cannot call it.
-const _: () = assert!(
-    motor::LQ_H - motor::LD_H < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H)
-        && motor::LD_H - motor::LQ_H
-            < pmsm_core::tuning::ESTIMATOR_SALIENCY * (motor::LQ_H + motor::LD_H),
-    "motor.rs holds an interior motor: build pmsm-core with features `mras-current` and `ipd`, not `nlo`"
-);
-
-/// The drive's options on this board: defaults, and the compensation of TIM1's compare
-/// preload (the duties of a sample act one period later, `pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES`).
-fn drive_options() -> pmsm_core::DriveOptions {
-    pmsm_core::DriveOptions {
-        pwm_delay_samples: Some(pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES),
-        ..pmsm_core::DriveOptions::default()
-    }
-}
-
 #[rtic::app(device = stm32g4::stm32g431, peripherals = true)]
 mod app {
-    use super::{board, drive_options, halt, motor};
+    use super::{board, halt, motor};
     use cortex_m::peripheral::DWT;
     use heapless::Vec;
     use heapless::spsc::Queue;
@@ -265,14 +259,13 @@ mod app {
         hw::start_cycle_counter(&mut cp.DCB, &mut cp.DWT);
         hw::enable_peripheral_clocks(&dp.RCC);
 
-        // Configuration (floating point, once).
+        // The drive build.rs designed on the host (its design is not in this image).
         let (m, inv) = (motor::motor(), motor::inverter());
-        let sample_hz = motor::PWM_HZ as f64;
-        let config = match DriveConfig::from_params(&m, &inv, sample_hz, drive_options()) {
+        let config = match DriveConfig::from_image(&super::image::DRIVE_IMAGE) {
             Ok(c) => c,
             Err(e) => {
-                defmt::error!("drive configuration: {}", e);
-                halt("motor.rs: the drive configuration failed");
+                defmt::error!("drive image: {}", e);
+                halt("the drive image of build.rs");
             }
         };
         let base = config.base;
@@ -845,7 +838,7 @@ mod app {
             &m,
             &motor::inverter(),
             motor::PWM_HZ as f64,
-            drive_options(),
+            motor::options(),
         ) {
             Ok(c) => c,
             Err(e) => {

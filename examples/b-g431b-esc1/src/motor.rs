@@ -5,7 +5,11 @@
 //! or identify it on the board (`--features commissioning`, the README).
 //!
 //! A surface motor: the defaults drive it with the NLO after an alignment
-//! (`EstimatorKind::for_motor`, docs/drive.md "which estimator").
+//! (`EstimatorKind::for_motor`, docs/drive.md "which estimator"); an interior one needs
+//! pmsm-core's features `mras-current` and `ipd` instead (Cargo.toml, README.md "Size").
+//!
+//! build.rs reads this file too: it designs the drive on the host from these values and the
+//! firmware loads the result (docs/image.md), so a motor the drive cannot run fails the build.
 
 use pmsm_core::{InverterParams, MotorParams};
 
@@ -46,6 +50,16 @@ pub fn inverter() -> InverterParams {
         vdc_v: VDC_V,
         pwm_hz: PWM_HZ as f64,
         dead_time_s: DEAD_TIME_NS as f64 * 1e-9,
-        current_full_scale_a: crate::board::CURRENT.full_scale_a(),
+        current_full_scale_a: crate::sensing::CURRENT.full_scale_a(),
+    }
+}
+
+/// The drive's options on this board: defaults, and the compensation of TIM1's compare
+/// preload (the duties of a sample act one period later,
+/// `pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES`).
+pub fn options() -> pmsm_core::DriveOptions {
+    pmsm_core::DriveOptions {
+        pwm_delay_samples: Some(pmsm_stm32::PWM_UPDATE_DELAY_SAMPLES),
+        ..pmsm_core::DriveOptions::default()
     }
 }

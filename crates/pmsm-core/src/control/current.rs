@@ -73,7 +73,7 @@ use crate::units::PerUnit;
 
 /// How the current controllers are designed; [`CurrentDesign::default_for`] gives the
 /// defaults.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct CurrentDesign {
     /// Closed-loop bandwidth `ω_c`, rad/s (used when the gains are not given).
     pub bandwidth_rad_s: f64,
@@ -104,7 +104,7 @@ impl CurrentDesign {
 pub const DEFAULT_BANDWIDTH_TS: f64 = 0.1;
 
 /// Configuration of the [`CurrentController`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct CurrentConfig {
     pi_d: PiConfig,
     pi_q: PiConfig,

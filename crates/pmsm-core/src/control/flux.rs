@@ -93,7 +93,7 @@ const V_SHIFT: u32 = 11;
 
 /// How the d-axis reference is made. `Default` is both off (the paper's `i_d = 0`);
 /// [`crate::DriveDesign::default_for`] turns both on ([`FluxDesign::ON`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 pub struct FluxDesign {
     /// MTPA below base speed for interior motors (surface motors keep `i_d = 0`).
     pub mtpa: bool,
@@ -112,7 +112,7 @@ impl FluxDesign {
 
 /// Configuration of the [`FluxController`]: eleven words, because the smallest target (the
 /// micro:bit's 16 KiB) holds the drive on its stack several times.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct FluxConfig {
     /// `sgn(2a)`: 1 for `L_q > L_d`, −1 for `L_q < L_d`, 0 without MTPA.
     sign_a: i32,

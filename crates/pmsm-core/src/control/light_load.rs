@@ -54,7 +54,7 @@ pub const LIGHT_LOAD_MAX_PER_LIMIT: f64 = 1.0 / 6.0;
 pub const LIGHT_LOAD_RAISED_PER_LIMIT: f64 = 0.2;
 
 /// The light-load current's configuration.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct LightLoadConfig {
     /// `I_LL`, per unit; zero: off.
     current: Pu,

@@ -70,7 +70,7 @@ pub(crate) fn default_bandwidth_rad_s(
 }
 
 /// The observer's coefficients.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct LoadObserverConfig {
     /// `T_t/τ_b`: the speed one per unit of current adds over a task period, per unit.
     a: f32,

@@ -78,7 +78,7 @@ pub const LOW_SPEED_FADE_PER_RATED: f64 = 0.2;
 const HANDOVER_DECAY_SHIFT: u32 = 4;
 
 /// The low-speed current's configuration.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct LowSpeedConfig {
     /// `I_LS`, [`Pu`] bits (0: off).
     current: i32,

@@ -148,7 +148,7 @@ impl PiTerms {
 }
 
 /// Gains of a [`Pi`], per unit (back-calculation; `K_p > 0`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, crate::image::Words)]
 pub struct PiConfig {
     kp: Coef<KP_FRAC>,
     ki_ts: Coef<KI_FRAC>,

@@ -115,7 +115,7 @@ pub const IP_FORM: f64 = 0.0;
 pub const PI_FORM: f64 = 1.0;
 
 /// How the speed controller is designed; [`SpeedDesign::default_for`] gives the defaults.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct SpeedDesign {
     /// Natural frequency `ω_n` of the speed loop, rad/s.
     pub bandwidth_rad_s: f64,
@@ -155,7 +155,7 @@ impl SpeedDesign {
 }
 
 /// Configuration of the [`SpeedController`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct SpeedConfig {
     /// `K_iΩ T` per unit.
     ki_t: Coef<KI_FRAC>,
@@ -237,7 +237,7 @@ impl SpeedConfig {
 
 /// The fixed-point gains and limit of a [`SpeedConfig`], without its design: what the drive
 /// keeps of the other loops it switches to ([`SpeedController::retune_gains`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub(crate) struct SpeedGains {
     ki_t: Coef<KI_FRAC>,
     neg_kp: Coef<KP_FRAC>,

@@ -26,7 +26,7 @@
 use crate::num::Pu;
 
 /// The calibration's currents and times, per unit and in samples.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 pub(crate) struct CalibrationConfig {
     /// `I_a`, `I_b`; zero: no calibration.
     pub levels: [Pu; 2],

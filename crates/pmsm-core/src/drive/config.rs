@@ -28,7 +28,7 @@ mod schedule;
 
 /// The fixed-point configuration of a drive: the interrupt side's part, the task's, and what
 /// they were computed from.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, crate::image::Words)]
 pub struct DriveConfig {
     /// Per-unit bases and sample period.
     pub base: PerUnit,
@@ -47,6 +47,7 @@ pub struct DriveConfig {
     pub(crate) task: TaskConfig,
     /// Why the default injection was left out ([`crate::InjectionDesign::fallback`]).
     #[cfg(feature = "injection")]
+    #[words(skip)] // a diagnostic (names, text): the image holds none
     injection_declined: Option<ConfigError>,
     /// The injection's design in figures (not the interrupt side's: `f64`).
     #[cfg(feature = "injection")]
@@ -54,7 +55,7 @@ pub struct DriveConfig {
 }
 
 /// What the interrupt side works with: fixed point only, no design data.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, crate::image::Words)]
 pub(crate) struct IsrConfig {
     pub deadtime: DeadTimeConfig,
     /// [`StartupMode::Auto`] chose the detection: one that finds the axis but not the
@@ -85,7 +86,7 @@ pub(crate) struct IsrConfig {
 }
 
 /// What the task works with, per unit and in task periods ([`TASK_PERIOD`] samples).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, crate::image::Words)]
 pub(crate) struct TaskConfig {
     pub estimator: EstimatorKind,
     /// How the drive starts ([`DriveDesign::startup`], resolved).
@@ -127,7 +128,7 @@ pub(crate) struct TaskConfig {
 }
 
 /// [`super::design::OpenLoopDesign`] in per unit and samples.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, crate::image::Words)]
 pub(crate) struct OpenLoopConfig {
     pub current: Pu,
     /// Speed increment per sample, per unit.
@@ -143,7 +144,7 @@ pub(crate) struct OpenLoopConfig {
 }
 
 /// The trips of every sample, per unit.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, crate::image::Words)]
 pub(crate) struct ProtectionConfig {
     pub overcurrent: Pu,
     pub vdc_min: Pu,
@@ -519,7 +520,8 @@ impl DriveConfig {
     }
 
     /// Why the injection the design asked for with [`crate::InjectionDesign::fallback`] was
-    /// left out (a surface motor, a gain out of range); `None` if it is in or was not asked.
+    /// left out (a surface motor, a gain out of range); `None` if it is in or was not asked,
+    /// and in a configuration read from an image (a diagnostic, which images do not hold).
     #[cfg(feature = "injection")]
     pub fn injection_declined(&self) -> Option<ConfigError> {
         self.injection_declined

@@ -17,7 +17,7 @@ use crate::params::{InverterParams, MotorParams};
 use crate::units::PerUnit;
 
 /// How the drive finds the rotor before it runs.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum StartupMode {
     /// Voltage pulses, saliency and saturation (Khlaief, Boussak, Gossa (2012) §4). In a
@@ -68,7 +68,7 @@ impl StartupMode {
 }
 
 /// The open-loop current-vector start of the back-EMF estimators, and the alignment.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct OpenLoopDesign {
     /// Current of the alignment and of the open-loop start, A peak.
     pub current_a: f64,
@@ -112,7 +112,7 @@ pub(crate) fn rated_e_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {
 pub const DEFAULT_HEALTH_LIMIT_PU: f64 = 1.0;
 
 /// Protection thresholds checked every sample (the reliability work extends this list).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct Protection {
     /// Phase current that trips the drive, A.
     pub overcurrent_a: f64,
@@ -148,7 +148,7 @@ impl Protection {
 
 /// Everything a drive is designed from, SI units. [`DriveDesign::default_for`] computes every
 /// default from the motor and the inverter; change fields to override.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct DriveDesign {
     /// The estimator.
     pub estimator: EstimatorKind,

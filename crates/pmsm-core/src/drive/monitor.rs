@@ -32,7 +32,7 @@ use crate::frames::{Abc, Dq};
 use crate::num::{Pu, follow, follow_shift, pu_from_f64};
 
 /// Thresholds and filter poles, per unit and in task periods.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, crate::image::Words)]
 pub(crate) struct MonitorConfig {
     /// Filters of 2 and 10 ms as shifts: `y += (x − y) >> k`, the pole `2^−k` with the
     /// time constant rounded to a power of two of task periods (no product).

@@ -85,7 +85,7 @@ use crate::svpwm::{Duties, SvpwmConfig};
 use crate::units::PerUnit;
 
 /// How the detector is set up; [`IpdDesign::default`] gives the defaults.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct IpdDesign {
     /// Pulse voltage as a fraction of the nominal `V_DC/√3`, in (0, 1].
     pub voltage_fraction: f64,
@@ -128,7 +128,7 @@ const RAMP_BACK_ASYMMETRY: f64 = 0.1;
 pub const MAX_SAMPLES: u32 = 1 << 20;
 
 /// Configuration of the [`Ipd`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct IpdConfig {
     /// Short pulse length, control samples.
     pub n_short: u32,

@@ -178,7 +178,7 @@ pub(crate) fn mul_q19(x: i32, c: u32) -> i32 {
 /// pre-shift, so that `x/d = ((x << pre) · r) >> 31`, one product and constant shifts on the
 /// control path. Valid for `|x| ≤ d` (a fraction within ±1); beyond, `x << pre` saturates and
 /// so does the result.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 pub(crate) struct Reciprocal {
     r: i32,
     pre: u32,
@@ -309,7 +309,7 @@ pub(crate) fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
 /// 1e−5, `L/(Ts·R)` 1e4), more than one Q format holds with precision. A `Gain` keeps 30–31
 /// significant bits whatever the magnitude: [`Gain::new`] picks the shift once in the
 /// configuration, and [`Gain::apply`] is one 32×32→64 multiply and a rounding shift.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, crate::image::Words)]
 pub(crate) struct Gain {
     mantissa: i32,
     shift: u32,
@@ -409,7 +409,7 @@ pub(crate) fn coef_bits(value: f64, frac: u32) -> Option<i32> {
 /// variable 64-bit shift). Range `[−2^(31−F), 2^(31−F))`, resolution `2^−F`; constructors
 /// reject values outside the range. `Coef<30>` holds gains below 2 in magnitude to 9.3e−10,
 /// `Coef<24>` below 128 to 6e−8.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 pub(crate) struct Coef<const F: u32>(i32);
 
 impl<const F: u32> Coef<F> {

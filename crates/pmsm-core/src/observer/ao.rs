@@ -40,7 +40,7 @@ use crate::params::MotorParams;
 use crate::units::PerUnit;
 
 /// Configuration of the [`Ao`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct AoConfig {
     meter: EmfMeterConfig,
     kappa: Gain,
@@ -87,7 +87,7 @@ impl AoConfig {
 
 /// The AO's steady lag behind the rotor as a function of its own speed (module docs, "lag
 /// compensation"): `y = |ω̂_AO|/g` in Q8.24 from `1/g` per unit of `ω_b`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub(crate) struct LagCompensation {
     /// `ω_b/g` (zero: off).
     inv_g: Gain,

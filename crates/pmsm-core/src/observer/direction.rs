@@ -43,7 +43,7 @@ const AT_SPEED_FACTOR: i64 = (FLIP_SPEED_PU / THRESHOLD_PU) as i64;
 const FRAC: u32 = 16;
 
 /// The coefficients of the direction tracker: the filter's shift and the flip threshold.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, crate::image::Words)]
 pub(crate) struct DirectionConfig {
     threshold: i64,
     /// Half the angle step of one sample at 1 pu of speed, angle LSB (the flip threshold at

@@ -30,7 +30,7 @@ use crate::units::PerUnit;
 pub const MIN_EMF_PU: f64 = 1e-4;
 
 /// The coefficients of the interval-mean EMF: `R/2` and `L/T_s` in per unit.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub(crate) struct EmfMeterConfig {
     /// `R/Z_b / 2`.
     half_r: Gain,
@@ -83,7 +83,7 @@ impl EmfMeter {
 
 /// The coefficients that turn an EMF estimate into the rotor's angle and speed, shared by the
 /// NLO, the AO and (through its AO) the MRAS on the AO.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub(crate) struct EmfToRotor {
     direction: DirectionConfig,
     /// `ψ_b/ψ`: per-unit speed per per-unit EMF magnitude.

@@ -55,7 +55,7 @@ use crate::units::PerUnit;
 
 /// How the injection is designed; [`InjectionDesign::default`] computes everything from the
 /// motor and the inverter.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct InjectionDesign {
     /// Injected amplitude `V_h`, V; `None`: the least that moves the current by
     /// [`InjectionDesign::signal_lsb`] ADC steps across the axis at 45° of error.
@@ -127,7 +127,7 @@ pub const SPEED_SHARE: f64 = 0.25;
 pub const MIN_SALIENCY: f64 = 1.1;
 
 /// The injection's fixed-point configuration.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub(crate) struct InjectionConfig {
     v_h: Pu,
     k_theta: Coef<12>,
@@ -146,7 +146,7 @@ pub(crate) struct InjectionConfig {
 }
 
 /// The injection as designed ([`crate::DriveConfig::injection`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct InjectionFigures {
     /// Injected amplitude along the estimated d axis, V.
     pub amplitude_v: f64,

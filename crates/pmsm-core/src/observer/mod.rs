@@ -136,7 +136,7 @@ pub(crate) use mras_current::{MRAS_MODEL_WORDS, MrasDecay, MrasModelScaling};
 pub use mras_current::{MrasCurrent, MrasCurrentConfig, MrasCurrentGains, MrasModel};
 
 /// Which estimator a drive runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, crate::image::Words)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EstimatorKind {
     /// Solsona, Valla, Muravchik (2000) NLO.
@@ -180,7 +180,7 @@ impl EstimatorKind {
 
 /// The configuration of any estimator of the crate: coefficients only (the state is built
 /// from it by [`AnyEstimator::new`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 #[allow(clippy::large_enum_variant)]
 pub enum EstimatorConfig {
     /// See [`NloConfig`].

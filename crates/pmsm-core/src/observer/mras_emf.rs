@@ -75,7 +75,7 @@ fn default_c3(base: &PerUnit) -> f64 {
 }
 
 /// Configuration of the [`MrasEmf`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct MrasEmfConfig {
     ao: AoConfig,
     law: Law,
@@ -85,7 +85,7 @@ pub struct MrasEmfConfig {
 
 /// The adaptation law's coefficients (the estimator keeps these, its AO its own
 /// configuration: no second copy of the AO's in the state).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 struct Law {
     /// `ω_b T_s / c3`: pull rate per unit of speed.
     pull: Gain,

@@ -68,7 +68,7 @@ use crate::units::PerUnit;
 pub const LOAD_GAIN_MAX: f64 = 1_048_576.0;
 
 /// Configuration of the [`Nlo`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct NloConfig {
     meter: EmfMeterConfig,
     kappa: Gain,

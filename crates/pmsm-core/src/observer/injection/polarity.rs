@@ -46,7 +46,7 @@ pub const MEASURE_PERIODS: u8 = 16;
 pub const MARGIN: f64 = 0.03;
 
 /// The check's configuration.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub(crate) struct PolarityConfig {
     /// `I_c`, per unit.
     pub bias: Pu,

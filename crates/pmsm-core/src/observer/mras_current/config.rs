@@ -8,7 +8,7 @@ use crate::params::MotorParams;
 use crate::units::PerUnit;
 
 /// Configuration of the [`MrasCurrent`] estimator.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct MrasCurrentConfig {
     /// Weights of the composed Strang step (module docs, "Discretisation"):
     /// `X_d = xd_i î_d + xd_v v_d + Ψ_d`, `X_q = xq_i î_q + xq_v v_q`,
@@ -61,7 +61,7 @@ pub struct MrasCurrentConfig {
 
 /// The adaptation gains the update uses, in their formats: the design's, or a level of the
 /// low-speed schedule.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 pub(super) struct Gains {
     /// `K_p` on ξ̃ (Q8.24 gain), `K_i T_s` on ξ̃, and the load estimate's `T_s K_L I_b/ρ`.
     pub(super) kp: Coef<24>,

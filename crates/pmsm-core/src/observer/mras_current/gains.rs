@@ -10,7 +10,7 @@ use crate::units::PerUnit;
 /// Adaptation gains of eq. 22 in SI units (ξ in A²): `K_p` in (rad/s)/A², `K_i` in
 /// (rad/s²)/A², electrical speed; and the gain of the load-current estimate of the mechanical
 /// model (module docs, "Through zero speed").
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, crate::image::Words)]
 pub struct MrasCurrentGains {
     /// Proportional gain `K_pω_r-est`.
     pub kp: f64,
