@@ -214,8 +214,9 @@ impl DriveConfig {
     }
 
     /// Computes and checks every coefficient of `design` for `motor` on `inverter` at
-    /// `sample_hz`. Inlined (the board firmware calls it once with its motor's constants, which
-    /// then fold: out of line it costs 7 KB more flash than the 64 KiB image holds); a caller
+    /// `sample_hz`. Inlined: a firmware that designs on the target calls it once, often with
+    /// its motor's constants, which then fold (out of line the B-G431B-ESC1 image was 7 KB
+    /// larger when it designed there; it loads a drive image now, docs/image.md); a caller
     /// that builds drives in several places wraps it once.
     #[inline(always)]
     pub fn new(
