@@ -7,7 +7,8 @@
 #   3. runs each in qemu-system-arm -icount shift=8 (the runners of examples/qemu/.cargo),
 #   4. prints every `PIL ...` line the firmware printed, then `PIL PASS` (exit 0) if both runs
 #      exited 0 with an exact calibration, benchmark figures, a bit-exact replay (on the
-#      Cortex-M4 also of the drive and the plant in a closed loop on the target) and the
+#      Cortex-M4 also of the drive and the plant in a closed loop on the target, and of the
+#      drive's image written on the host, read and designed on the target) and the
 #      drive's two steps within their instruction budgets (below: the interrupt step
 #      `isr_<estimator>` with the current-model MRAS by default, with MTPA and field weakening
 #      on (`isr_flux`), with the voltage on the circle (`isr_saturated`) and with the
@@ -137,6 +138,10 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
   if [[ $cpu == cortex-m4 ]]; then
     grep -qE "^PIL $cpu closed_loop bit_exact=true steps=[1-9][0-9]*$" "$run_log" ||
       problems+=("no bit-exact closed loop")
+    # The drive image the host wrote, read here, and this target's own design, word for word
+    # the host's (docs/image.md; the board's core: the micro:bit has no room for its code).
+    grep -qE "^PIL $cpu image bit_exact=true words=[1-9][0-9]*$" "$run_log" ||
+      problems+=("drive image not bit-exact")
   fi
   names="$(grep -oE "^PIL $cpu [a-z0-9_]+ insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" |
     awk '{print $3}' | sort | tr '\n' ' ')"

@@ -26,6 +26,7 @@ pub fn section() -> String {
     // component -> [m4 mean, m4 max, m0 mean, m0 max]
     let mut table: BTreeMap<String, [String; 4]> = BTreeMap::new();
     let mut replay = Vec::new();
+    let mut images = Vec::new();
     let mut closed = Vec::new();
     let mut per_sample = Vec::new();
     let mut loops = Vec::new();
@@ -44,6 +45,7 @@ pub fn section() -> String {
                 e[col + 1] = max.trim_start_matches("insn_max=").to_owned();
             }
             ["PIL", cpu, "replay", exact, steps] => replay.push(format!("{cpu}: {exact}, {steps}")),
+            ["PIL", cpu, "image", exact, words] => images.push(format!("{cpu}: {exact}, {words}")),
             ["PIL", cpu, "closed_loop", exact, steps] => {
                 closed.push(format!("{cpu}: {exact}, {steps}"))
             }
@@ -62,6 +64,14 @@ pub fn section() -> String {
         ));
     }
     s.push_str(&format!("\nReplay: {}.\n\n", replay.join("; ")));
+    if !images.is_empty() {
+        s.push_str(&format!(
+            "Drive image (docs/image.md): the replayed drive's configuration written on the host, \
+             read on the target and written again, and designed on the target and written, word \
+             for word the host's: {}.\n\n",
+            images.join("; ")
+        ));
+    }
     if !closed.is_empty() {
         s.push_str(&format!(
             "Closed loop on the target (the drive and the plant, motor B from rest, 0.1 s; \

@@ -53,4 +53,14 @@ fn main() {
     }
     println!("cargo:rerun-if-changed={}", loops.display());
     println!("cargo:rustc-env=PIL_LOOPS_PATH={}", loops.display());
+    let image = recording.with_file_name("drive_image.bin");
+    if !image.exists() {
+        panic!(
+            "no drive image at {}: run `cargo run --release -p pmsm-pil-host` in examples/qemu \
+             first (or scripts/pil.sh); it writes it beside the recording",
+            image.display()
+        );
+    }
+    println!("cargo:rerun-if-changed={}", image.display());
+    println!("cargo:rustc-env=PIL_IMAGE_PATH={}", image.display());
 }

@@ -6,10 +6,12 @@
 //! PIL <cpu> calibration ticks_per_insn=<x> overhead_insn=<n> exact=true
 //! PIL <cpu> <component> insn_mean=<n> insn_max=<n>        (one line per component)
 //! PIL <cpu> replay bit_exact=true steps=<n>
+//! PIL cortex-m4 image bit_exact=true words=<n>
 //! ```
 //!
-//! then exits QEMU with status 0 if the calibration is exact and the replay bit-exact, 1
-//! otherwise. Lines starting with `#` are information. See `examples/qemu/README.md`.
+//! then exits QEMU with status 0 if the calibration is exact and the replay (and on the
+//! Cortex-M4 the drive image) bit-exact, 1 otherwise. Lines starting with `#` are information.
+//! See `examples/qemu/README.md`.
 #![no_std]
 #![no_main]
 
@@ -108,35 +110,92 @@ fn run() -> bool {
             );
         }
     });
-    match outcome {
-        Outcome::Exact { steps, cases } => {
-            hprintln!("PIL {CPU} replay bit_exact=true steps={steps}");
-            cases > 0
-        }
-        Outcome::Mismatch { steps, at } => {
-            hprintln!(
-                "PIL {CPU} replay bit_exact=false steps={steps} case={} step={} output={} target={} host={}",
-                at.case,
-                at.step,
-                at.output,
-                at.target,
-                at.host
-            );
-            false
-        }
-        Outcome::Invalid { steps, reason } => {
-            hprintln!("PIL {CPU} replay bit_exact=false steps={steps}");
-            match reason {
-                Invalid::Format(e) => hprintln!("# {CPU} replay: recording: {e}"),
-                Invalid::Empty => hprintln!("# {CPU} replay: the recording has no cases"),
-                Invalid::UnknownCase(c) => hprintln!("# {CPU} replay: unknown case {c}"),
-                Invalid::Shape(c) => hprintln!("# {CPU} replay: case {c}: word counts differ"),
-                Invalid::Config(c) => hprintln!("# {CPU} replay: case {c}: configuration failed"),
-                Invalid::Short(c) => hprintln!("# {CPU} replay: case {c}: ran short"),
+    let image = image_check();
+    image
+        & match outcome {
+            Outcome::Exact { steps, cases } => {
+                hprintln!("PIL {CPU} replay bit_exact=true steps={steps}");
+                cases > 0
             }
-            false
+            Outcome::Mismatch { steps, at } => {
+                hprintln!(
+                    "PIL {CPU} replay bit_exact=false steps={steps} case={} step={} output={} target={} host={}",
+                    at.case,
+                    at.step,
+                    at.output,
+                    at.target,
+                    at.host
+                );
+                false
+            }
+            Outcome::Invalid { steps, reason } => {
+                hprintln!("PIL {CPU} replay bit_exact=false steps={steps}");
+                match reason {
+                    Invalid::Format(e) => hprintln!("# {CPU} replay: recording: {e}"),
+                    Invalid::Empty => hprintln!("# {CPU} replay: the recording has no cases"),
+                    Invalid::UnknownCase(c) => hprintln!("# {CPU} replay: unknown case {c}"),
+                    Invalid::Shape(c) => hprintln!("# {CPU} replay: case {c}: word counts differ"),
+                    Invalid::Config(c) => {
+                        hprintln!("# {CPU} replay: case {c}: configuration failed")
+                    }
+                    Invalid::Short(c) => hprintln!("# {CPU} replay: case {c}: ran short"),
+                }
+                false
+            }
         }
+}
+
+/// The image of the `drive` case's configuration the host wrote (`pmsm-pil-host`, 32-bit
+/// little-endian words, docs/image.md).
+#[cfg(target_has_atomic = "32")]
+static HOST_IMAGE: &[u8] = include_bytes!(env!("PIL_IMAGE_PATH"));
+
+/// On the Cortex-M4 (the board's core): the host's image of the `drive` case's configuration
+/// read here (`DriveConfig::from_image`) and written again, and this target's own design of
+/// it written, word for word the host's: `PIL <cpu> image bit_exact=… words=…`. The
+/// micro:bit's flash does not hold the image's code beside the recording: true there.
+fn image_check() -> bool {
+    #[cfg(target_has_atomic = "32")]
+    {
+        use pmsm_core::DriveConfig;
+        const N: usize = DriveConfig::IMAGE_WORDS;
+        let mut host = [0u32; N];
+        let mut n = 0;
+        for (w, b) in host.iter_mut().zip(HOST_IMAGE.chunks_exact(4)) {
+            *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            n += 1;
+        }
+        let (mut read, mut own) = ([0u32; N], [0u32; N]);
+        let loaded = n == N && HOST_IMAGE.len() == 4 * N;
+        let loaded = loaded
+            && match DriveConfig::from_image(&host) {
+                Ok(c) => {
+                    c.write_image(&mut read);
+                    true
+                }
+                Err(_) => false,
+            };
+        let designed = match pmsm_pil::cases::DriveCase::config() {
+            Ok(c) => {
+                c.write_image(&mut own);
+                true
+            }
+            Err(_) => false,
+        };
+        let exact = loaded && designed && read == host && own == host;
+        hprintln!("PIL {CPU} image bit_exact={exact} words={N}");
+        if !exact {
+            hprintln!(
+                "# {CPU} image: host's {} bytes, read {loaded}, designed {designed}, read back {}, own design {}",
+                HOST_IMAGE.len(),
+                read == host,
+                own == host
+            );
+        }
+        exact
     }
+    #[cfg(not(target_has_atomic = "32"))]
+    true
 }
 
 /// The image of feature `identify`: the identification's benchmarks and the back-EMF

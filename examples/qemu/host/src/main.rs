@@ -105,6 +105,17 @@ fn run() -> Result<(), String> {
         &output.with_file_name("loops.bin"),
         &closed_loops()?,
         &format!("{} closed loops", loops::LOOP_MOTORS.len()),
+    )?;
+    // The `drive` case's configuration designed here, as its image (docs/image.md): the
+    // Cortex-M4 reads it and compares it with its own design.
+    let config = cases::DriveCase::config().map_err(|e| format!("drive image: {e}"))?;
+    let mut words = [0u32; pmsm_core::DriveConfig::IMAGE_WORDS];
+    config.write_image(&mut words);
+    let image: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    write_unchanged(
+        &output.with_file_name("drive_image.bin"),
+        &image,
+        &format!("the drive's image, {} words", words.len()),
     )
 }
 
