@@ -35,22 +35,25 @@ target_dir="${CARGO_TARGET_DIR:-$fw/target}"
 elf="$target_dir/thumbv7em-none-eabihf/release/b-g431b-esc1"
 
 read -r text data bss < <(arm-none-eabi-size -B "$elf" | awk 'NR == 2 { print $1, $2, $3 }')
-flash=$((text + data))
-ram=$((data + bss))
-printf 'firmware b-g431b-esc1: text %d data %d bss %d bytes\n' "$text" "$data" "$bss"
-printf 'firmware b-g431b-esc1: flash %d of %d bytes (%d.%d %%), static RAM %d of %d bytes (%d.%d %%)\n' \
-  "$flash" "$flash_max" $((flash * 100 / flash_max)) $((flash * 1000 / flash_max % 10)) \
-  "$ram" "$ram_max" $((ram * 100 / ram_max)) $((ram * 1000 / ram_max % 10))
-
 status=0
-if ((flash > flash_max)); then
-  echo "firmware-size: FAIL: flash $flash > $flash_max bytes" >&2
-  status=1
-fi
-if ((ram > ram_max)); then
-  echo "firmware-size: FAIL: static RAM $ram > $ram_max bytes" >&2
-  status=1
-fi
+# Prints an image's flash and static RAM against the limits ($1 names it, $2 $3 $4 its text,
+# data and bss) and sets status=1 if either is over.
+limits() {
+  local flash=$(($2 + $3)) ram=$(($3 + $4))
+  printf '%s: flash %d of %d bytes (%d.%d %%), static RAM %d of %d bytes (%d.%d %%)\n' "$1" \
+    "$flash" "$flash_max" $((flash * 100 / flash_max)) $((flash * 1000 / flash_max % 10)) \
+    "$ram" "$ram_max" $((ram * 100 / ram_max)) $((ram * 1000 / ram_max % 10))
+  if ((flash > flash_max)); then
+    echo "firmware-size: FAIL: $1: flash $flash > $flash_max bytes" >&2
+    status=1
+  fi
+  if ((ram > ram_max)); then
+    echo "firmware-size: FAIL: $1: static RAM $ram > $ram_max bytes" >&2
+    status=1
+  fi
+}
+printf 'firmware b-g431b-esc1: text %d data %d bss %d bytes\n' "$text" "$data" "$bss"
+limits "firmware b-g431b-esc1" "$text" "$data" "$bss"
 
 # The interior variant: its own binary name, so that it shares the target directory (and the
 # compiled dependencies) without replacing the default image that scripts/no-panic.sh reads.
@@ -77,19 +80,8 @@ fi
   --target-dir "$target_dir" >&2)
 velf="$target_dir/thumbv7em-none-eabihf/release/b-g431b-esc1-interior"
 read -r vtext vdata vbss < <(arm-none-eabi-size -B "$velf" | awk 'NR == 2 { print $1, $2, $3 }')
-vflash=$((vtext + vdata))
-vram=$((vdata + vbss))
-printf 'firmware b-g431b-esc1, interior motor (mras-current, ipd, tracking, distortion-learner): flash %d of %d bytes (%d.%d %%), static RAM %d of %d bytes (%d.%d %%)\n' \
-  "$vflash" "$flash_max" $((vflash * 100 / flash_max)) $((vflash * 1000 / flash_max % 10)) \
-  "$vram" "$ram_max" $((vram * 100 / ram_max)) $((vram * 1000 / ram_max % 10))
-if ((vflash > flash_max)); then
-  echo "firmware-size: FAIL: interior variant's flash $vflash > $flash_max bytes" >&2
-  status=1
-fi
-if ((vram > ram_max)); then
-  echo "firmware-size: FAIL: interior variant's static RAM $vram > $ram_max bytes" >&2
-  status=1
-fi
+limits "firmware b-g431b-esc1, interior motor (mras-current, ipd, tracking, distortion-learner)" \
+  "$vtext" "$vdata" "$vbss"
 
 if [[ "${BLESS:-0}" == 1 ]]; then
   {

@@ -12,6 +12,8 @@ use pmsm_core::{
 };
 use pmsm_plant::{AdcParams, InverterKind, InverterModel, Motor, MotorModel, Plant};
 
+mod common;
+
 /// Per step: the duties' bits, the state and the estimate; at the end the rotor's speed.
 struct Run {
     log: Vec<(u64, DriveState, u64, i32)>,
@@ -110,29 +112,43 @@ fn motor_b_runs_the_same_bits_from_its_image() {
     check("motor B", motor_b(), inverter_b(), 1500.0, 3.0);
 }
 
+/// The motor of `examples/<name>` (the ideal plant of its parameters).
+fn example_motor(name: &str) -> MotorParams {
+    pmsm_cli::motor_file::read(&common::example(name))
+        .unwrap()
+        .model
+        .params
+}
+
+/// An inverter of `vdc_v` switching at `pwm_hz` with the current sensing's full scale.
+fn inverter(
+    vdc_v: f64,
+    pwm_hz: f64,
+    dead_time_s: f64,
+    current_full_scale_a: f64,
+) -> InverterParams {
+    InverterParams {
+        vdc_v,
+        pwm_hz,
+        dead_time_s,
+        current_full_scale_a,
+    }
+}
+
 #[test]
 fn interior_motor_c_runs_the_same_bits_from_its_image() {
-    let mut m = MotorParams::new(4, 0.1, 0.0003, 0.0005, 0.01323, 0.001, 0.00001);
-    m.rated_current_a = Some(25.0);
-    m.rated_speed_rpm = Some(3000.0);
-    let inv = InverterParams {
-        vdc_v: 24.0,
-        pwm_hz: 20e3,
-        dead_time_s: 0.5e-6,
-        current_full_scale_a: 60.0,
-    };
-    check("motor C", m, inv, 1000.0, 1.0);
+    let inv = inverter(24.0, 20e3, 0.5e-6, 60.0);
+    check(
+        "motor C",
+        example_motor("motor-c-24v.toml"),
+        inv,
+        1000.0,
+        1.0,
+    );
 }
 
 #[test]
 fn surface_motor_a_runs_the_same_bits_from_its_image() {
-    let mut m = MotorParams::new(3, 1.6, 0.0134, 0.0134, 0.288, 0.04256, 0.004256);
-    m.kt_nm_per_a = 1.108;
-    let inv = InverterParams {
-        vdc_v: 300.0,
-        pwm_hz: 10e3,
-        dead_time_s: 1e-6,
-        current_full_scale_a: 40.0,
-    };
-    check("motor A", m, inv, 1000.0, 5.0);
+    let inv = inverter(300.0, 10e3, 1e-6, 40.0);
+    check("motor A", example_motor("motor-a.toml"), inv, 600.0, 3.0);
 }
