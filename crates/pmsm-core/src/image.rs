@@ -98,8 +98,8 @@ pub(crate) const fn max(a: usize, b: usize) -> usize {
     if a > b { a } else { b }
 }
 
-/// Where [`Words::put`] writes: a slice of exactly the image's length (words past its end
-/// are dropped and counted, which the writer's caller checks).
+/// Where [`Words::put`] writes: a slice of exactly the image's length ([`write`] is given
+/// `2 + T::WORDS` words, as many as it writes; a word past the end would be dropped).
 pub(crate) struct WordWriter<'a> {
     out: &'a mut [u32],
     at: usize,
