@@ -138,12 +138,20 @@ impl<const W: usize> Mailbox<W> {
     /// Publishes `m` (the one writer); returns its number.
     #[inline(always)]
     pub fn publish<M: Message<W>>(&self, m: &M) -> u32 {
+        self.publish_packed(|slot| m.pack(slot))
+    }
+
+    /// Opens the next slot, has `pack` fill it with a message's words, and publishes it: the
+    /// words go straight from where `pack` reads them into the slot, with no message built
+    /// first (the interrupt's window, [`super::isr`]).
+    #[inline(always)]
+    pub fn publish_packed(&self, pack: impl FnOnce(&[AtomicU32; W])) -> u32 {
         let count = self.count.load(Ordering::Relaxed) & !1;
         let n = (count >> 1).wrapping_add(1);
         // Writing: a reader that sees this and then the slot's words retries.
         self.count.store(count | 1, Ordering::Relaxed);
         fence(Ordering::Release);
-        m.pack(self.slot(n));
+        pack(self.slot(n));
         // The words before the number that names them.
         fence(Ordering::Release);
         self.count.store(n << 1, Ordering::Relaxed);

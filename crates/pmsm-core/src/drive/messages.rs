@@ -249,7 +249,7 @@ fn read_fault<const N: usize>(r: &mut Unpacker<N>) -> Fault {
 }
 
 impl Status {
-    fn write<const N: usize>(&self, w: &mut Packer<N>) {
+    pub(crate) fn write<const N: usize>(&self, w: &mut Packer<N>) {
         let (tag, x) = match *self {
             Status::Off => (0, 0),
             Status::Ipd => (1, 0),
@@ -405,12 +405,22 @@ impl Message<COMMAND_WORDS> for Command {
 
 pub(crate) const WINDOW_WORDS: usize = 2 + TAGGED_WORDS + 4 + 2 + 2 + 14 + 1 + 3;
 
+impl Window {
+    /// The word of the two flags (one word for both: the interrupt side writes every word of
+    /// the window).
+    #[inline(always)]
+    pub(crate) fn flags(saturated: bool, injecting: bool) -> u32 {
+        u32::from(saturated) | u32::from(injecting) << 1
+    }
+}
+
 impl Message<WINDOW_WORDS> for Window {
     fn pack(&self, slot: &[AtomicU32; WINDOW_WORDS]) {
         let w = &mut Packer::new(slot);
+        // The status first: its fault's words are the only call, with nothing else loaded yet.
+        self.status.write(w);
         w.u32(self.epoch);
         w.u32(self.trips);
-        self.status.write(w);
         write_angle(w, self.theta_est);
         write_pu(w, self.omega);
         write_pu(w, self.omega_mean);
@@ -437,8 +447,7 @@ impl Message<WINDOW_WORDS> for Window {
         ] {
             write_pu(w, x);
         }
-        // One word for both flags: the interrupt side copies every word of the window.
-        w.u32(u32::from(self.saturated) | u32::from(self.injecting) << 1);
+        w.u32(Window::flags(self.saturated, self.injecting));
         for p in self.power {
             w.u32(p);
         }
@@ -446,9 +455,9 @@ impl Message<WINDOW_WORDS> for Window {
 
     fn unpack(slot: &[AtomicU32; WINDOW_WORDS]) -> Self {
         let r = &mut Unpacker::new(slot);
+        let status = Status::read(r);
         let epoch = r.u32();
         let trips = r.u32();
-        let status = Status::read(r);
         let theta_est = read_angle(r);
         let omega = read_pu(r);
         let omega_mean = read_pu(r);
