@@ -11,7 +11,7 @@
 //! `docs/PERFORMANCE.md`.
 
 use crate::angle::Angle;
-use crate::num::{Pu, round_shift_sat};
+use crate::num::{Pu, round_shift_var};
 
 /// Rotations performed. The residual angle is at most atan 2⁻⁽ᴺ⁻¹⁾ plus rounding.
 pub const ITERATIONS: usize = 28;
@@ -127,7 +127,8 @@ pub fn polar(x: Pu, y: Pu) -> Polar {
         i += 1;
     }
     // x ≥ 0 here; scale by K, then undo the normalisation (left and right are exclusive).
-    let magnitude = round_shift_sat(x as i64 * K_Q31, 31 + left - right);
+    // x < 2³¹ and K < 2³¹: the product is below 2⁶², the shift in 28..=62.
+    let magnitude = round_shift_var(x as i64 * K_Q31, 31 + left - right);
     Polar {
         magnitude: Pu::from_bits(magnitude),
         angle: Angle(z as i32),

@@ -370,10 +370,12 @@ impl Gain {
         libm::ldexp(self.mantissa as f64, -(self.shift as i32))
     }
 
-    /// `gain · x` for a signal in any Q format, in the same format; rounded, saturated.
+    /// `gain · x` for a signal in any Q format, in the same format; rounded, saturated:
+    /// bit for bit [`round_shift_sat`] of the exact product by the gain's shift, through
+    /// [`round_shift_var`] (the shift is known only at run time).
     #[inline(always)]
     pub fn apply_bits(self, x: i32) -> i32 {
-        round_shift_sat(wmul(x, self.mantissa), self.shift)
+        round_shift_var(wmul(x, self.mantissa), self.shift)
     }
 
     /// `gain · x` for a [`Pu`] signal, rounded to nearest and saturated.
@@ -381,6 +383,42 @@ impl Gain {
     pub fn apply(self, x: Pu) -> Pu {
         Pu::from_bits(self.apply_bits(x.to_bits()))
     }
+}
+
+/// [`round_shift_sat`] by a shift known only at run time (a [`Gain`]'s, the CORDIC's
+/// magnitude), bit for bit, for `shift` in 1..=62 and `|p| ≤ 2⁶²` (a product of two `i32`).
+/// The generic rounding by a run-time shift took some thirty instructions; here the two cases
+/// are taken apart:
+/// - Beyond 32 (a gain below 2⁻², whose mantissa keeps 31 bits), `p` shifted is below 2³⁰:
+///   nothing to saturate, and the rounding `(p + 2^(s−1)) >> s` reads the high word alone,
+///   `(hi + 2^(s−33)) >> (s − 32)` (the low word adds less than one unit of the high word's,
+///   which the shift drops). Three instructions.
+/// - Up to 32, the rounded shift, kept when the high word shows that it fits (the common
+///   case); the rails out of line.
+#[inline(always)]
+pub(crate) fn round_shift_var(p: i64, shift: u32) -> i32 {
+    let s = shift;
+    if s > 32 {
+        // s ≤ 62: both shifts are in range; |hi| ≤ 2³⁰ and 2^(s−33) ≤ 2²⁹, no wrap.
+        let hi = (p >> 32) as i32;
+        (hi + (1 << ((s - 33) & 31))) >> ((s - 32) & 31)
+    } else {
+        // s in 1..=32 and |p| ≤ 2⁶²: the sum cannot wrap.
+        let q = p + (1i64 << ((s - 1) & 31));
+        let hi = (q >> 32) as i32;
+        if (hi >> ((s - 1) & 31)) == (hi >> 31) {
+            (q >> (s & 63)) as i32
+        } else {
+            rail(p, s)
+        }
+    }
+}
+
+/// [`round_shift_var`] beyond the `i32` range: [`round_shift_sat`]'s rail.
+#[cold]
+#[inline(never)]
+fn rail(p: i64, shift: u32) -> i32 {
+    round_shift_sat(p, shift)
 }
 
 /// A constant factor with a compile-time binary point: `value = bits · 2^−F`, `F` in 1..=32.

@@ -38,6 +38,36 @@ fn products_saturate_instead_of_wrapping() {
     assert_eq!(pu_from_f64(f64::NAN), Pu::ZERO);
 }
 
+/// At the extremes of both factors and every shift, a gain's product is the rounding of the
+/// exact one ([`round_shift_sat`]).
+#[test]
+fn gain_products_at_the_extremes() {
+    let edges = [
+        i32::MIN,
+        i32::MIN + 1,
+        -(1 << 30),
+        -3,
+        -1,
+        0,
+        1,
+        3,
+        1 << 30,
+        i32::MAX,
+    ];
+    for shift in 1..=62 {
+        for m in edges {
+            for x in edges {
+                let want = round_shift_sat(x as i64 * m as i64, shift);
+                assert_eq!(
+                    Gain::from_raw(m, shift).apply_bits(x),
+                    want,
+                    "{m} {x} {shift}"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn gains_keep_thirty_bits_across_decades() {
     for v in [
@@ -240,6 +270,16 @@ proptest! {
         prop_assert_eq!(mul_u16_halves(x, c), exact);
         prop_assert_eq!(mul_u16(x, c), exact);
         prop_assert_eq!(mul_q19(x, c), ((x as i64 * c as i64) >> 19) as i32);
+    }
+
+    #[test]
+    fn gain_products_are_the_rounding_of_the_exact_product(
+        m in any::<i32>(),
+        shift in 1u32..=62,
+        x in any::<i32>(),
+    ) {
+        let g = Gain::from_raw(m, shift);
+        prop_assert_eq!(g.apply_bits(x), round_shift_sat(x as i64 * m as i64, shift));
     }
 
     #[test]
