@@ -15,8 +15,9 @@
 #      high-frequency injection on (`isr_injection`, docs/injection.md), the back-EMF
 #      estimators' in a closed loop; the task step `task`, once per `task_period` samples,
 #      also on the low bus (`task_saturated`) and with the tracker's learning stage on top
-#      (`task` + `task_tracker`)),
-#      else `PIL FAIL` (exit 1);
+#      (`task` + `task_tracker`)), else `PIL FAIL` (exit 1); the interrupt step with a bus
+#      reading that changes at every sample (`isr_bus_noise`) is reported, not held to a
+#      budget;
 #   5. builds and runs, on both machines, the image of feature `identify` (the
 #      identification's benchmarks and the back-EMF estimators' drives in a closed loop with a
 #      plant, no recording: the micro:bit cannot hold both), which must identify its plant

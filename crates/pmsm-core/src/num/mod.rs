@@ -443,8 +443,8 @@ pub(crate) fn coef_bits(value: f64, frac: u32) -> Option<i32> {
 
 /// The hot path's twin of [`Gain`]: where a coefficient's range is known from the motor
 /// envelope, a fixed `F` makes every product one `SMULL`, a constant shift and a high-word
-/// fit test (about ten instructions on a Cortex-M4, against about forty for a `Gain`'s
-/// variable 64-bit shift). Range `[−2^(31−F), 2^(31−F))`, resolution `2^−F`; constructors
+/// fit test (about ten instructions on a Cortex-M4; a `Gain` takes a test of its run-time
+/// shift more, [`round_shift_var`], and a few more when its shift is 32 or less). Range `[−2^(31−F), 2^(31−F))`, resolution `2^−F`; constructors
 /// reject values outside the range. `Coef<30>` holds gains below 2 in magnitude to 9.3e−10,
 /// `Coef<24>` below 128 to 6e−8.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]

@@ -279,9 +279,24 @@ fn add(st: &mut Stats, n: u32) {
     st.max = st.max.max(n);
 }
 
+/// How a benchmark reads the bus: the recorded reading (constant) in eighths of itself, and
+/// whether it moves at every sample by up to three steps of 1/2048 of itself, as a 12-bit
+/// converter's reading does (the drive then takes new bus terms at every sample).
+#[derive(Clone, Copy)]
+struct BusReading {
+    eighths: i32,
+    noise: bool,
+}
+
+/// The recorded bus reading as it is.
+const RECORDED_BUS: BusReading = BusReading {
+    eighths: 8,
+    noise: false,
+};
+
 /// The interrupt and task steps of `drive` in `Run` on the recorded closed loop of the
-/// `drive` replay case (motor B, current-model MRAS), with the bus reading scaled by
-/// `eighths`/8: the drive is fed the recorded inputs through its initial position detection,
+/// `drive` replay case (motor B, current-model MRAS), with the bus read as `bus` says: the
+/// drive is fed the recorded inputs through its initial position detection,
 /// then every step in `Run` is measured. The drive is designed here (`drive`), before the
 /// benchmark's frame is on the stack, and no caller's frame holds one.
 #[inline(never)]
@@ -289,12 +304,19 @@ fn bench_drive_sides(
     meter: &Meter,
     rec: &CaseData<'static>,
     config: fn() -> Option<DriveConfig>,
-    eighths: i32,
+    bus: BusReading,
 ) -> Option<Sides> {
     let mut d = cases::started(config()?);
     let input = |k: usize| {
         let (mut x, w) = recorded_drive_input(rec, k);
-        x.vdc = Pu::from_bits(x.vdc.to_bits() / 8 * eighths);
+        let v = x.vdc.to_bits() / 8 * bus.eighths;
+        // 0, 3, 2, 1, 0, … steps of 1/2048 of the reading: a new value at every sample.
+        let noise = if bus.noise {
+            ((k as i32 * 7) & 3) * (v >> 11)
+        } else {
+            0
+        };
+        x.vdc = Pu::from_bits(v + noise);
         (x, w)
     };
     let mut sides = Sides::default();
@@ -776,22 +798,34 @@ fn run_drive(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) -> Result<(), 
     if let Some(rec) = drive_recording() {
         report("ipd_step", &bench_ipd(meter, &rec, ipd));
         profile_begin();
-        let sides = bench_drive_sides(meter, &rec, || DriveCase::config().ok(), 8);
+        let sides = bench_drive_sides(meter, &rec, || DriveCase::config().ok(), RECORDED_BUS);
         profile_end();
         if let Some(st) = sides {
             report("isr_mras_current", &st.isr);
             report("task", &st.task);
         }
-        if let Some(st) = bench_drive_sides(meter, &rec, drive_with_flux, 8) {
+        if let Some(st) = bench_drive_sides(meter, &rec, drive_with_flux, RECORDED_BUS) {
             report("isr_flux", &st.isr);
             report("task_flux", &st.task);
         }
-        if let Some(st) = bench_drive_sides(meter, &rec, drive_on_low_bus, LOW_BUS_EIGHTHS) {
+        let low_bus = BusReading {
+            eighths: LOW_BUS_EIGHTHS,
+            noise: false,
+        };
+        if let Some(st) = bench_drive_sides(meter, &rec, drive_on_low_bus, low_bus) {
             report("isr_saturated", &st.isr);
             report("task_saturated", &st.task);
         }
+        let noisy_bus = BusReading {
+            noise: true,
+            ..RECORDED_BUS
+        };
+        let config = || DriveCase::config().ok();
+        if let Some(st) = bench_drive_sides(meter, &rec, config, noisy_bus) {
+            report("isr_bus_noise", &st.isr);
+        }
         #[cfg(target_has_atomic = "32")]
-        if let Some(st) = bench_drive_sides(meter, &rec, drive_with_injection, 8) {
+        if let Some(st) = bench_drive_sides(meter, &rec, drive_with_injection, RECORDED_BUS) {
             report("isr_injection", &st.isr);
         }
     }
