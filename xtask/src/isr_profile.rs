@@ -219,9 +219,10 @@ struct Symbols {
     begin: u32,
     end: u32,
     step: u32,
-    /// The end of a task period (`DriveIsr::end_period`): a step that runs it publishes the
-    /// window.
-    end_period: (u32, u32),
+    /// The addresses of the end of a task period (`DriveIsr::end_period`, its function or,
+    /// where it is inlined (ARMv6-M), the step's addresses inlined from it): a step that runs
+    /// one publishes the window.
+    end_period: std::collections::HashSet<u32>,
     /// The estimators' updates: a call that runs one is in the closed loop.
     updates: Vec<(u32, u32)>,
     /// Every function's first address: a jump there is a call.
@@ -266,7 +267,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
             end = Some(a);
         }
         if name.contains("8DriveIsr4step") {
-            step = Some(a);
+            step = Some((a, a + n));
         }
         if name.contains("10end_period") {
             end_period = Some((a, a + n));
@@ -276,13 +277,26 @@ fn symbols(elf: &Path) -> Result<Symbols> {
         }
     }
     let need = |x: Option<u32>, what: &str| x.with_context(|| format!("no symbol for {what}"));
+    let step = step.context("no symbol for DriveIsr::step")?;
+    // Out of line, its function's addresses; inlined, the step's that addr2line names it at.
+    let end_period: std::collections::HashSet<u32> = match end_period {
+        Some((a, b)) => (a..b).collect(),
+        None => chains(elf, (step.0..step.1).step_by(2))?
+            .into_iter()
+            .filter(|(_, chain)| chain.iter().any(|f| f.name.contains("end_period")))
+            .map(|(pc, _)| pc)
+            .collect(),
+    };
+    if end_period.is_empty() {
+        bail!("no code of DriveIsr::end_period in {}", elf.display());
+    }
     Ok(Symbols {
         core,
         meter: meter.context("no symbol for the meter's ticks")?,
         begin: need(begin, "profile_begin")?,
         end: need(end, "profile_end")?,
-        step: need(step, "DriveIsr::step")?,
-        end_period: end_period.context("no symbol for DriveIsr::end_period")?,
+        step: step.0,
+        end_period,
         updates,
         entries,
     })
@@ -369,7 +383,7 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
         sites.follow(pc, last, pc != sym.step && sym.entries.contains(&pc));
         last = pc;
         closed |= sym.updates.iter().any(|(a, b)| (*a..*b).contains(&pc));
-        ends |= (sym.end_period.0..sym.end_period.1).contains(&pc);
+        ends |= sym.end_period.contains(&pc);
         *call.entry((pc, sites.innermost())).or_default() += 1;
     }
     let status = child.wait()?;
