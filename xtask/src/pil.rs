@@ -136,7 +136,8 @@ pub fn section() -> String {
              on the same inputs, the reading moved by up to three steps of 1/2048 of itself at \
              each sample, as a 12-bit converter's does on a real board; reported, not held to a \
              budget): the interrupt then takes the modulator's and the dead-time compensation's \
-             bus terms (a reciprocal and five products) at every step, Cortex-M4 {}, \
+             bus terms (the reciprocal's 32-bit division and four products, and four \
+             products more) at every step, Cortex-M4 {}, \
              Cortex-M0 {}; mean {} and {}. The recorded runs read a constant bus.\n\n",
             v[1], v[3], v[0], v[2]
         ));
