@@ -387,7 +387,7 @@ impl Gain {
 
 /// [`round_shift_sat`] by a shift known only at run time (a [`Gain`]'s, the CORDIC's
 /// magnitude), bit for bit, for `shift` in 1..=62 and `|p| ≤ 2⁶²` (a product of two `i32`).
-/// The generic rounding by a run-time shift took some thirty instructions; here the two cases
+/// A 64-bit shift by a run-time amount with its saturation test is long; here the two cases
 /// are taken apart:
 /// - Beyond 32 (a gain below 2⁻², whose mantissa keeps 31 bits), `p` shifted is below 2³⁰:
 ///   nothing to saturate, and the rounding `(p + 2^(s−1)) >> s` reads the high word alone,
@@ -444,9 +444,9 @@ pub(crate) fn coef_bits(value: f64, frac: u32) -> Option<i32> {
 /// The hot path's twin of [`Gain`]: where a coefficient's range is known from the motor
 /// envelope, a fixed `F` makes every product one `SMULL`, a constant shift and a high-word
 /// fit test (about ten instructions on a Cortex-M4; a `Gain` takes a test of its run-time
-/// shift more, [`round_shift_var`], and a few more when its shift is 32 or less). Range `[−2^(31−F), 2^(31−F))`, resolution `2^−F`; constructors
-/// reject values outside the range. `Coef<30>` holds gains below 2 in magnitude to 9.3e−10,
-/// `Coef<24>` below 128 to 6e−8.
+/// shift more, [`round_shift_var`], and a few more when its shift is 32 or less). Range
+/// `[−2^(31−F), 2^(31−F))`, resolution `2^−F`; constructors reject values outside the range.
+/// `Coef<30>` holds gains below 2 in magnitude to 9.3e−10, `Coef<24>` below 128 to 6e−8.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, crate::image::Words)]
 pub(crate) struct Coef<const F: u32>(i32);
 

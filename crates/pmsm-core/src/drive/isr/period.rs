@@ -19,9 +19,9 @@ use core::sync::atomic::AtomicU32;
 impl DriveIsr {
     /// The end of a task period: the overrun check (the task must have answered the previous
     /// window), the window of the samples that ran published. (Off or tripped, a late
-    /// answer is no overrun: no sample of control depends on when.) Inlined on ARMv6-M only:
-    /// there it saves the end of a period's step 45 instructions (the worst case), where on
-    /// a Cortex-M4 it costs every step ten (`scripts/pil.sh`).
+    /// answer is no overrun: no sample of control depends on when.) Inlined on ARMv6-M only,
+    /// where that shortens the end of a period's step, the worst case; on a Cortex-M4 the
+    /// inlined copy lengthens every step (`scripts/pil.sh`).
     #[cfg_attr(
         all(target_arch = "arm", not(target_has_atomic = "32")),
         inline(always)
@@ -43,8 +43,8 @@ impl DriveIsr {
 
     /// [`DriveIsr::window`]'s words (as [`Window`]'s `Message::pack` writes them) straight
     /// from the interrupt side's state into the mailbox's `slot`: a load and a store per word,
-    /// where building the window first held its 33 words across the status's branches
-    /// (150 instructions on a Cortex-M4). The tests hold the two to the same words.
+    /// where building the window first held its 33 words across the status's branches and
+    /// spilled them. The tests hold the two to the same words.
     #[inline(always)]
     pub(super) fn pack_window(&self, input: &DriveInput, slot: &[AtomicU32; WINDOW_WORDS]) {
         let t = &self.telemetry;
