@@ -75,10 +75,9 @@ pub struct InjectionDesign {
     /// …and hands back to the estimator above this one.
     pub off_above: f64,
     /// On a motor the injection cannot serve (saliency below [`MIN_SALIENCY`], a gain out of
-    /// range), design the drive without it and say why
-    /// ([`DriveConfig::injection_declined`](crate::DriveConfig::injection_declined)) instead
-    /// of refusing the design. On in the default; a user who asks for the injection by name
-    /// gets the error.
+    /// range), design the drive without it and say why (`DriveConfig::injection_declined`,
+    /// with the feature `injection`) instead of refusing the design. On in the default; a
+    /// user who asks for the injection by name gets the error.
     pub fallback: bool,
 }
 
