@@ -294,6 +294,26 @@ impl AnyEstimator {
         }
     }
 
+    /// `sin_cos(theta)`, bit for bit: the NLO's own when `theta` is its last estimate's angle
+    /// (it computes that sin/cos for its EMF's direction), computed otherwise. Out of line, as
+    /// the `sin_cos` it stands for: the drive's step keeps its shape (a build without the NLO
+    /// calls `sin_cos` itself).
+    #[cfg_attr(
+        any(not(feature = "select-estimators"), feature = "nlo"),
+        inline(never)
+    )]
+    #[cfg_attr(
+        all(feature = "select-estimators", not(feature = "nlo")),
+        inline(always)
+    )]
+    pub(crate) fn sin_cos_of(&self, theta: crate::angle::Angle) -> crate::angle::SinCos {
+        match self {
+            #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
+            AnyEstimator::Nlo(e) if e.estimate().theta == theta => e.rotor_sin_cos(),
+            _ => theta.sin_cos(),
+        }
+    }
+
     /// The current-model MRAS takes the gains of its low-speed schedule for its estimated
     /// speed ([`MrasCurrent::schedule`]); the others have none.
     #[inline(always)]

@@ -30,7 +30,7 @@ impl DriveIsr {
         // Current loops, in the setpoint's frame.
         let i_dq = match frame {
             Some(f) => f.i_dq,
-            None => park(i, theta.sin_cos()),
+            None => park(i, self.estimator.sin_cos_of(theta)),
         };
         // The bus terms first: the current loops share their reciprocal with the modulator.
         let inv_vdc = self.inv_vdc.get(vdc, &self.config.svpwm).recip();
