@@ -120,8 +120,8 @@ pub struct Nlo {
     emf: AlphaBeta,
     /// Direction of `ê` used for the mechanical term (kept when `|ê|` is tiny).
     emf_dir: SinCos,
-    /// `sin_cos(θ̂)` of the last estimate: `emf_dir` is it turned a quarter, and the drive
-    /// reuses it for its frame.
+    /// `sin_cos(θ̂)` of the last estimate, which the drive reuses for its frame: `emf_dir` is it
+    /// turned a quarter whenever `|ê|` is large enough to have an angle.
     sc: SinCos,
     last: Estimate,
     /// `|Δα| + |Δβ|` of the last innovation (measured minus predicted interval-mean EMF).
