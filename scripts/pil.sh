@@ -8,7 +8,8 @@
 #   4. prints every `PIL ...` line the firmware printed, then `PIL PASS` (exit 0) if both runs
 #      exited 0 with an exact calibration, benchmark figures, a bit-exact replay (on the
 #      Cortex-M4 also of the drive and the plant in a closed loop on the target, and of the
-#      drive's image written on the host, read and designed on the target) and the
+#      drive's image written on the host, read and designed on the target), at least
+#      `stack_margin` bytes of the stack never used, and the
 #      drive's two steps within their instruction budgets (below: the interrupt step
 #      `isr_<estimator>` with the current-model MRAS by default, with MTPA and field weakening
 #      on (`isr_flux`), with the voltage on the circle (`isr_saturated`) and with the
@@ -102,6 +103,20 @@ declare -A isr_budget=(
 )
 # The task period (samples), for the mean cost per sample of both steps.
 task_period=8
+# Least stack left unused in the runs of the recorded cases (bytes): the micro:bit's 16 KiB
+# hold the drive's state and the benchmarks' frames, and an overflow there may corrupt the
+# static data and hang rather than fault, so a run is held to a margin before it overflows.
+stack_margin=1024
+# Checks the `# <cpu> stack: peak <p> of <s> bytes` line of $1 (a log) against the margin.
+check_stack() {
+  local log=$1 cpu=$2 peak size
+  read -r peak size < <(sed -nE "s/^# $cpu stack: peak ([0-9]+) of ([0-9]+) bytes$/\1 \2/p" "$log")
+  if [[ -z $peak ]]; then
+    echo "no stack figure"
+  elif ((size - peak < stack_margin)); then
+    echo "stack peak $peak of $size bytes: less than $stack_margin bytes left"
+  fi
+}
 # Checks `PIL <cpu> <name> ... insn_max=<n>` of $1 (a log) against its budget.
 check_budget() {
   local log=$1 cpu=$2 name=$3 budget=${isr_budget[$2:$3]}
@@ -125,7 +140,7 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
   lines+=("${got[@]}")
   problems=()
   if [[ $rc -eq 124 ]]; then
-    problems+=("timed out after ${timeout_s}s")
+    problems+=("timed out after ${timeout_s}s (on the micro:bit, also what a stack overflow into the static data can do)")
   elif grep -q 'Lockup' "$run_log"; then
     problems+=("CPU lockup (a fault in the fault handler: stack overflow?)")
   elif [[ $rc -ne 0 ]]; then
@@ -158,6 +173,8 @@ for run in "cortex-m4 thumbv7em-none-eabihf" "cortex-m0 thumbv6m-none-eabi"; do
     p="$(check_budget "$run_log" "$cpu" "$step")"
     [[ -z $p ]] || problems+=("$p")
   done
+  p="$(check_stack "$run_log" "$cpu")"
+  [[ -z $p ]] || problems+=("$p")
   # The tracker of R and psi is frozen in the recorded runs: its learning stage
   # (`task_tracker`) on top of the task's worst case must fit the task's budget too.
   task_max="$(grep -oE "^PIL $cpu task insn_mean=[0-9]+ insn_max=[0-9]+$" "$run_log" | sed -E 's/.*insn_max=//')"
