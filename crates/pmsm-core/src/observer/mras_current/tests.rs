@@ -367,3 +367,41 @@ fn the_task_s_scaled_model_is_the_reference_s() {
         Err(ConfigError::Gain { key: "ld_h", .. })
     ));
 }
+
+/// The high words' test of the speed integrator's limits answers only when the exact 64-bit
+/// comparison agrees, and answers for every value more than 2³³ inside the limits.
+#[test]
+fn the_high_words_tell_the_integrator_inside_only_when_it_is() {
+    use super::update::within_high_word;
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let mut answered = 0;
+    for k in 0..200_000 {
+        // Limits of ±4 pu in Q9.55 and a few others, some not a whole number of high words.
+        let hi = match k % 3 {
+            0 => 4i64 << 55,
+            1 => (next() >> 6) as i64,
+            _ => ((next() >> 6) as i64) & !0xffff_ffff,
+        };
+        let x = match k % 4 {
+            0 => next() as i64,
+            1 => (next() as i64) >> 5,
+            2 => hi - 2 + (next() % 5) as i64,
+            _ => -hi - 2 + (next() % 5) as i64,
+        };
+        let exact = -hi < x && x < hi;
+        if within_high_word(x, hi) {
+            assert!(exact, "{x} within ±{hi}?");
+            answered += 1;
+        } else if exact {
+            // Unanswered inside: only within 2³³ of a limit.
+            assert!(x > hi - (1 << 33) || x < -hi + (1 << 33), "{x} ±{hi}");
+        }
+    }
+    assert!(answered > 10_000, "{answered}");
+}

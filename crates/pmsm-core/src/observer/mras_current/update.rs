@@ -221,6 +221,15 @@ fn advance(prev: SinCos, now: SinCos) -> SinCos {
     }
 }
 
+/// Whether `−hi < x < hi` can be told from the high words alone (`hi ≥ 0`): so when
+/// `|x_h| < h_h`, as then `x < (x_h + 1) 2³² ≤ h_h 2³² ≤ hi` and
+/// `x ≥ x_h 2³² ≥ (1 − h_h) 2³² > −hi`. A 32-bit test for the common case of the speed
+/// integrator's limits, whose exact 64-bit comparisons are the rare case.
+#[inline(always)]
+pub(super) fn within_high_word(x: i64, hi: i64) -> bool {
+    (((x >> 32) as i32).unsigned_abs()) < (hi >> 32) as u32
+}
+
 /// The integrator step when the output before the clamp, `raw = K_p ξ̃ + I`, is on or beyond
 /// `±ω_max` (the PI's anti-windup, module docs "Gains"): with `K_p > 0` back-calculation,
 /// `I ← I + K_i T_s ξ̃ + k_t (clamp(raw) − raw)`, `k_t = min(1, K_i T_s/K_p)`; with `K_p = 0`
@@ -312,13 +321,17 @@ impl Estimator for MrasCurrent {
         let p = coef_mul(g.kp, xi);
         let raw = ((p.to_bits() as i64) << INTEG_EXTRA) + integ;
         let hi = c.omega_max_wide;
-        let integ = if -hi < raw && raw < hi {
+        let integ = if within_high_word(raw, hi) || (-hi < raw && raw < hi) {
             // Inside the limits: no anti-windup term.
             integ + wide(xi.to_bits(), g.ki_ts.bits())
         } else {
             integrate_saturated(c, raw, integ, xi)
         };
-        let integ = integ.max(-hi).min(hi);
+        let integ = if within_high_word(integ, hi) {
+            integ
+        } else {
+            integ.max(-hi).min(hi)
+        };
         self.integ = integ;
         // Rounded to Q8.24: |I| ≤ ω_max ≤ 4 pu, so the shifted value fits without a test.
         let i_pu = Pu::from_bits(((integ + (1 << (INTEG_EXTRA - 1))) >> INTEG_EXTRA) as i32);
