@@ -17,7 +17,7 @@
 //! Measured error against f64 over the whole input range: see `docs/PERFORMANCE.md`; the
 //! tests bound it at 3 LSB of Q2.30 (2.8e−9).
 
-use crate::num::{UNIT_FRAC, Unit, round_shift, round_shift_sat, wmul_inline};
+use crate::num::{UNIT_FRAC, Unit, round_shift, round_shift_sat, wmul, wmul_inline};
 use core::ops::{Add, Neg, Sub};
 
 /// Electrical angle, one turn = 2³² (LSB = 2π/2³² ≈ 1.46e−9 rad), range [−π, π), wrapping.
@@ -76,7 +76,9 @@ impl Angle {
     /// The angle in radians as Q2.30, for small angles (|θ| < 2 rad; saturates beyond).
     pub fn to_rad_unit(self) -> Unit {
         // rad = counts · 2π/2^32, so Q2.30 bits = counts · π/2.
-        Unit::from_bits(round_shift_sat(self.0 as i64 * HALF_PI_Q30, UNIT_FRAC))
+        // `HALF_PI_Q30` < 2³¹: the exact product of two `i32` (no general 64-bit multiply on
+        // ARMv6-M).
+        Unit::from_bits(round_shift_sat(wmul(self.0, HALF_PI_Q30 as i32), UNIT_FRAC))
     }
 
     /// Sine and cosine, each within 3 LSB of Q2.30.

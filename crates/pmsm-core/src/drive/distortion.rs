@@ -210,14 +210,16 @@ pub struct DistortionLearner {
 fn sign_pattern(i: AlphaBeta, inv_band_q20: i64) -> (i32, i32) {
     const ONE: i64 = 1 << SIGNAL_FRAC;
     let sg = |x: i64| (((x >> (PU_FRAC - SIGNAL_FRAC)) * inv_band_q20) >> 20).clamp(-ONE, ONE);
-    let (a, b) = (i64::from(i.alpha.to_bits()), i64::from(i.beta.to_bits()));
+    let a = i64::from(i.alpha.to_bits());
     // The phases b and c: −a/2 ± (√3/2) β (56756/2¹⁶ = √3/2 to 10⁻⁵).
-    let h = (b * 56_756) >> 16;
+    let h = crate::num::wmul(i.beta.to_bits(), 56_756) >> 16;
     let (sa, sb, sc) = (sg(a), sg(-(a >> 1) + h), sg(-(a >> 1) - h));
-    // (2 s_a − s_b − s_c)/3 and (s_b − s_c)/√3 (21845 and 37837 over 2¹⁶).
+    // (2 s_a − s_b − s_c)/3 and (s_b − s_c)/√3 (21845 and 37837 over 2¹⁶), in 32-bit products:
+    // each sign is within ±2¹², so each product is below 2²⁹.
+    let (sa, sb, sc) = (sa as i32, sb as i32, sc as i32);
     (
-        (((2 * sa - sb - sc) * 21_845) >> 16) as i32,
-        (((sb - sc) * 37_837) >> 16) as i32,
+        ((2 * sa - sb - sc) * 21_845) >> 16,
+        ((sb - sc) * 37_837) >> 16,
     )
 }
 
@@ -407,7 +409,7 @@ impl DistortionLearner {
         let w = input.omega.to_bits();
         let q12 = |x: i32| x >> SIGNAL_FRAC;
         let (id, iq) = (q12(input.i_dq.d.to_bits()), q12(input.i_dq.q.to_bits()));
-        let current_sq = i64::from(id) * i64::from(id) + i64::from(iq) * i64::from(iq);
+        let current_sq = crate::num::wmul(id, id) + crate::num::wmul(iq, iq);
         let frozen = if self.run_updates <= self.settle_updates {
             Some(DistortionFrozen::Settling)
         } else if !(self.min_speed..=self.max_speed).contains(&w.saturating_abs()) {

@@ -124,7 +124,7 @@ const fn join_clamped(p: i64, shift: u32) -> i32 {
 /// `x` times the Q4.28 scale `s` (`1 << 28` is one), saturated: the dead-time calibration's
 /// scale applied to a configuration's bits, and to the scale already in use.
 pub(crate) fn scale_q28(x: i32, s: i32) -> i32 {
-    sat_i32((i64::from(x) * i64::from(s)) >> 28)
+    sat_i32(wmul(x, s) >> 28)
 }
 
 /// Saturates an `i64` to the `i32` range.

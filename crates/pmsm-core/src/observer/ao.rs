@@ -119,7 +119,8 @@ impl LagCompensation {
         let factor = Pu::ONE + y2 / 2 + mul(y4, Pu::from_bits(6_291_456)) // 3/8
             + mul(mul(y4, y2), Pu::from_bits(5_242_880)); // 5/16
         // asin < 0.53 rad: the product fits in 64 bits with room.
-        let lag = ((i64::from(asin.to_bits()) * RAD_TO_ANGLE_Q16) >> 16) as i32;
+        // `RAD_TO_ANGLE_Q16` < 2³¹: the exact product of two `i32` (`wmul`).
+        let lag = (crate::num::wmul(asin.to_bits(), RAD_TO_ANGLE_Q16 as i32) >> 16) as i32;
         (Angle(lag), factor)
     }
 

@@ -60,7 +60,7 @@ use crate::angle::{Angle, SinCos};
 use crate::cordic::polar;
 use crate::error::ConfigError;
 use crate::frames::{AlphaBeta, rotate};
-use crate::num::{Gain, Pu, Unit, dot_unit, mul_unit, round_shift_sat};
+use crate::num::{Gain, Pu, Unit, dot_unit, mul_unit, round_shift_sat, wmul};
 use crate::params::MotorParams;
 use crate::units::PerUnit;
 
@@ -189,13 +189,14 @@ fn emf_direction(sc: SinCos, forward: bool) -> SinCos {
 /// `sinc x = sin x / x ≈ 1 − x²/6 + x⁴/120` for `|x| ≤ 1` (error below 2e−4 at 1 rad,
 /// below 1 LSB of Q2.30 under 0.07 rad, where the NLO runs at rated speed).
 fn sinc(x: Unit) -> Unit {
-    const SIXTH: i64 = 178_956_971; // 1/6, Q2.30
-    const ONE_20TH: i64 = 8_947_849; // 1/120, Q2.30
-    let x = x.to_bits() as i64;
-    let x2 = round_shift_sat(x * x, 30) as i64;
-    let x4 = round_shift_sat(x2 * x2, 30) as i64;
-    let s = (1i64 << 30) - round_shift_sat(x2 * SIXTH, 30) as i64
-        + round_shift_sat(x4 * ONE_20TH, 30) as i64;
+    const SIXTH: i32 = 178_956_971; // 1/6, Q2.30
+    const ONE_20TH: i32 = 8_947_849; // 1/120, Q2.30
+    // Products of two `i32`, exact (`wmul`: no general 64-bit multiply on ARMv6-M).
+    let x = x.to_bits();
+    let x2 = round_shift_sat(wmul(x, x), 30);
+    let x4 = round_shift_sat(wmul(x2, x2), 30);
+    let s = (1i64 << 30) - round_shift_sat(wmul(x2, SIXTH), 30) as i64
+        + round_shift_sat(wmul(x4, ONE_20TH), 30) as i64;
     Unit::from_bits(s as i32)
 }
 

@@ -105,9 +105,7 @@ impl Batch {
         if let Some(sum) = self.sum_i.get_mut(k) {
             *sum = sum.saturating_add(i64::from(i_ref));
         }
-        self.sum_i2 = self
-            .sum_i2
-            .saturating_add(i64::from(i_ref) * i64::from(i_ref));
+        self.sum_i2 = self.sum_i2.saturating_add(crate::num::wmul(i_ref, i_ref));
         self.n += 1;
         let sums = self.sum.iter_mut().zip(&mut self.cos).zip(&mut self.sin);
         for (((sum, cos), sin), &x) in sums.zip(x) {
