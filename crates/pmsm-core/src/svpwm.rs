@@ -542,7 +542,9 @@ impl Duties {
     /// rounded.
     pub fn to_compare(&self, period: u16) -> [u16; 3] {
         let f = |d: Unit| -> u16 {
-            let x = (d.to_bits().clamp(0, 1 << UNIT_FRAC) as i64 * period as i64
+            // The exact product of two `i32` (`wmul`: the C library calls this every period,
+            // and an `i64` product is ARMv6-M's general 64-bit multiply).
+            let x = (wmul(d.to_bits().clamp(0, 1 << UNIT_FRAC), i32::from(period))
                 + (1 << (UNIT_FRAC - 1)))
                 >> UNIT_FRAC;
             x.clamp(0, period as i64) as u16

@@ -118,8 +118,8 @@ impl LagCompensation {
         let asin = mul(y, Pu::ONE + y2 / 6 + mul(y4, Pu::from_bits(1_258_291))); // 3/40
         let factor = Pu::ONE + y2 / 2 + mul(y4, Pu::from_bits(6_291_456)) // 3/8
             + mul(mul(y4, y2), Pu::from_bits(5_242_880)); // 5/16
-        // asin < 0.53 rad: the product fits in 64 bits with room.
-        // `RAD_TO_ANGLE_Q16` < 2³¹: the exact product of two `i32` (`wmul`).
+        // `RAD_TO_ANGLE_Q16` < 2³¹: the exact product of two `i32` (`wmul`); asin < 0.53 rad,
+        // so the angle fits its `i32` with room.
         let lag = (crate::num::wmul(asin.to_bits(), RAD_TO_ANGLE_Q16 as i32) >> 16) as i32;
         (Angle(lag), factor)
     }
