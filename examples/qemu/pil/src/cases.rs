@@ -224,11 +224,6 @@ pub const DRIVE_STATE_WORD: usize = 6;
 pub struct DriveCase(pub Drive);
 
 impl DriveCase {
-    /// The drive of the case, started (in `Ipd`).
-    pub fn drive() -> Result<Drive, ConfigError> {
-        Ok(started(Self::config()?))
-    }
-
     /// The configuration of the case's drive (out of line: its design's frame is gone before
     /// the drive is built).
     #[inline(never)]
@@ -250,8 +245,9 @@ impl Case for DriveCase {
     const NAME: &'static str = "drive";
     const INPUTS: usize = 5;
     const OUTPUTS: usize = 7;
+    /// The case's drive, started (in `Ipd`); [`Case::init`] builds it in place.
     fn new(_setup: &Setup) -> Result<Self, ConfigError> {
-        Ok(Self(Self::drive()?))
+        Ok(Self(started(Self::config()?)))
     }
     fn init<'a>(
         _setup: &Setup,
