@@ -22,6 +22,15 @@ pub fn inverse_park(dq: [f64; 2], theta: f64) -> [f64; 2] {
     [dq[0] * c - dq[1] * s, dq[0] * s + dq[1] * c]
 }
 
+/// The frame at `theta` as the fixed-point drive's transforms take it (sin and cos floored to
+/// 2⁻¹⁴): its angle and length.
+pub fn frame_q14(theta: f64) -> (f64, f64) {
+    let (s, c) = theta.sin_cos();
+    let q = |x: f64| (x * 16384.0).floor() / 16384.0;
+    let (s, c) = (q(s), q(c));
+    (s.atan2(c), s.hypot(c))
+}
+
 /// Angle wrapped to [−π, π).
 pub fn wrap(x: f64) -> f64 {
     (x + PI).rem_euclid(TAU) - PI
@@ -170,24 +179,29 @@ impl MrasRef {
         let delta = self.omega * self.ts;
         let th0 = self.theta;
         let th1 = th0 + delta;
+        // The frames as the fixed-point estimator takes them: sin and cos floored to 2⁻¹⁴, a
+        // rotation by φ scaled by ρ; the measured currents come scaled by ρ₁, and the model
+        // (in the frame at φ, unscaled here) is compared scaled the same.
+        let (phi0, _) = frame_q14(th0);
+        let (phi1, rho1) = frame_q14(th1);
         if self.seed {
             self.seed = false;
             self.theta = th1;
-            self.i_hat = park(i_ab, th1);
+            self.i_hat = park(i_ab, phi1);
             self.xi = 0.0;
             return (self.theta, self.omega);
         }
-        self.half_step(park(v_ab, th0));
-        // Flux vector in the estimated frame turns by −Δ as the frame advances by Δ.
-        let (s, c) = delta.sin_cos();
+        self.half_step(park(v_ab, phi0));
+        // Flux vector in the estimated frame turns by −Δφ as the frame advances by Δφ.
+        let (s, c) = (phi1 - phi0).sin_cos();
         let ld_ = self.ld * self.i_hat[0] + self.psi;
         let lq_ = self.lq * self.i_hat[1];
         let (nd, nq) = (c * ld_ + s * lq_, -s * ld_ + c * lq_);
         self.i_hat = [(nd - self.psi) / self.ld, nq / self.lq];
-        self.half_step(park(v_ab, th1));
+        self.half_step(park(v_ab, phi1));
         self.theta = th1;
-        let i = park(i_ab, th1);
-        let (ed, eq) = (i[0] - self.i_hat[0], i[1] - self.i_hat[1]);
+        let i = park(i_ab, phi1).map(|x| rho1 * x);
+        let (ed, eq) = (i[0] - rho1 * self.i_hat[0], i[1] - rho1 * self.i_hat[1]);
         // Khlaief, Boussak, Gossa (2012) eq. 22, the d-axis error weighed by `d_weight`
         // (docs/khlaief2012.md §2).
         let xi = self.d_weight * (self.lq / self.ld) * i[1] * ed

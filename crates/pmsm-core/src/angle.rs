@@ -207,6 +207,46 @@ pub fn sin_cos(angle: Angle) -> SinCos {
     }
 }
 
+/// Sine and cosine of `angle` taken down to 2⁻¹⁴, as the control path's transforms take a
+/// frame (`frame_bits`): the table of [`sin_cos`], the remainder applied with 32-bit products
+/// only (its terms need 2⁻²⁰, not 2⁻³⁰), so no 32×32→64 product on any core. Within 2⁻²² of
+/// the exact value before it is taken down (tests), so each is the exact value's step of the
+/// grid or, within 2⁻²² of a step, its neighbour.
+// Out of line: inlined into the MRAS's update it saved nothing (`scripts/pil.sh`: one
+// instruction more on the Cortex-M4, five on the Cortex-M0).
+#[inline(never)]
+pub(crate) fn sin_cos_frame(angle: Angle) -> SinCos {
+    let turn = angle.0 as u32;
+    let nearest = turn.wrapping_add(1 << (REM_BITS - 1)) >> REM_BITS;
+    let rem = turn.wrapping_sub(nearest << REM_BITS) as i32; // [−2^21, 2^21)
+    let quadrant = (nearest >> 8) & 3;
+    let k = nearest & 0xff;
+    let (s0, c0) = (table(k) as i32, table(QUARTER_POINTS as u32 - k) as i32);
+    let (s_a, c_a) = match quadrant {
+        0 => (s0, c0),
+        1 => (c0, -s0),
+        2 => (-s0, -c0),
+        _ => (-c0, s0),
+    };
+    // δ in Q8.24 radians: rem · 2π/2³² · 2²⁴ = rem π/2⁷, as (rem/4) · round(π/2⁶ · 2¹⁶) / 2¹⁵
+    // (below 2³¹ before the shift); |δ| < 51 473.
+    const PI_Q16_64: i32 = 3217;
+    let delta = ((rem >> 2) * PI_Q16_64) >> 15;
+    // δ²: a few bits of δ suffice (Q.32, below 40 402).
+    let t = delta >> 8;
+    let d2 = t * t;
+    let (s15, c15) = (s_a >> 15, c_a >> 15); // |·| ≤ 2¹⁵
+    // x δ: Q15 · Q24 = Q39, to Q30; x δ²/2: Q15 · Q32 = Q47, halved to Q30. Every product is
+    // below 2³¹ (2¹⁵ · 51 473 and 2¹⁵ · 40 402).
+    let sin = s_a - ((s15 * d2) >> 18) + ((c15 * delta) >> 9);
+    let cos = c_a - ((c15 * d2) >> 18) - ((s15 * delta) >> 9);
+    let low = !((1 << (UNIT_FRAC - 14)) - 1);
+    SinCos {
+        sin: Unit::from_bits(sin & low),
+        cos: Unit::from_bits(cos & low),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -276,6 +316,36 @@ mod tests {
             }
         }
         assert!(worst <= 3.0, "worst {worst} LSB");
+    }
+
+    /// Before it is taken down to 2⁻¹⁴, the frame's sin/cos is within 2⁻²² of the exact one:
+    /// the step it gives is the exact value's, or a neighbour within 2⁻²² of the boundary.
+    #[test]
+    fn frame_sin_cos_is_the_exact_values_step() {
+        let step = 1.0 / (1u64 << 14) as f64;
+        let mut worst: f64 = 0.0;
+        let mut check = |a: Angle| {
+            let sc = sin_cos_frame(a);
+            let x = a.to_rad();
+            for (got, exact) in [(sc.sin, libm::sin(x)), (sc.cos, libm::cos(x))] {
+                assert_eq!(got.to_bits() & 0xffff, 0, "{a:?}");
+                let got = got.to_bits() as f64 * LSB;
+                // got = floor(v) for a v within 2⁻²² of exact: exact − got in (−2⁻²², step + 2⁻²²).
+                let below = exact - got;
+                worst = worst.max((-below).max(below - step));
+                assert!(got <= 1.0 && got >= -1.0 - step, "{a:?}: {got}");
+            }
+        };
+        for k in 0..(1u32 << 20) {
+            check(Angle((k << 12) as i32 ^ 0x5a5));
+        }
+        for k in 0..1024u32 {
+            for off in [-1i64, 0, 1] {
+                let t = ((k as i64) << REM_BITS) + (1 << (REM_BITS - 1)) + off;
+                check(Angle(t as u32 as i32));
+            }
+        }
+        assert!(worst < 1.0 / (1u64 << 22) as f64, "{worst:e}");
     }
 
     #[test]

@@ -8,7 +8,9 @@
 //! rounds once and saturates, so no input can make it wrap.
 
 use crate::angle::SinCos;
-use crate::num::{INV_SQRT3_Q31, Pu, dot_unit, round_shift, round_shift_sat, wmul};
+use crate::num::{
+    INV_SQRT3_Q31, Pu, dot_frame, dot_unit, frame_bits, round_shift, round_shift_sat, wmul,
+};
 
 /// Three phase quantities, per unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -142,6 +144,31 @@ pub fn inverse_park(v: Dq, sc: SinCos) -> AlphaBeta {
     }
 }
 
+/// [`park`] in the current-model MRAS's frames: sin and cos taken to 2⁻¹⁴ ([`frame_bits`]),
+/// so within 2⁻¹³ of the exact rotation (2 LSB of a 12-bit converter's full scale are 5e−4),
+/// in half the Cortex-M0's products. The statement of what the MRAS's own turn computes bit
+/// for bit (its frames kept on the grid, it needs no masking), tested against `f64`.
+#[cfg(test)]
+pub(crate) fn park_frame(v: AlphaBeta, sc: SinCos) -> Dq {
+    let (s, c) = frame_bits(sc);
+    Dq {
+        d: dot_frame(v.alpha, c, v.beta, s),
+        // |s| ≤ 1: its negation cannot wrap.
+        q: dot_frame(v.beta, c, v.alpha, s.wrapping_neg()),
+    }
+}
+
+/// [`inverse_park`] in the current-model MRAS's frames, as `park_frame`: the drive turns its
+/// voltage into the phases' frame with it when the MRAS gives the frame.
+#[cfg_attr(all(target_arch = "arm", not(target_has_atomic = "32")), inline(never))]
+pub(crate) fn inverse_park_frame(v: Dq, sc: SinCos) -> AlphaBeta {
+    let (s, c) = frame_bits(sc);
+    AlphaBeta {
+        alpha: dot_frame(v.d, c, v.q, s.wrapping_neg()),
+        beta: dot_frame(v.d, s, v.q, c),
+    }
+}
+
 /// Rotates a stationary vector by the angle of `sc` (counter-clockwise).
 #[inline]
 pub fn rotate(v: AlphaBeta, sc: SinCos) -> AlphaBeta {
@@ -174,6 +201,35 @@ mod tests {
     fn lsb_err(got: Pu, exact: f64) -> f64 {
         let clamped = exact.clamp(to_f64(Pu::MIN), to_f64(Pu::MAX));
         (to_f64(got) - clamped).abs() / LSB
+    }
+
+    /// Whether `park` and `inverse_park` of `(x, y)` (bits of Pu) at the angle `t` are each
+    /// within `bound(|x| + |y|)` LSB of the f64 transforms with the exact sin/cos.
+    fn pair_within(
+        x: i32,
+        y: i32,
+        t: i32,
+        bound: impl Fn(f64) -> f64,
+        park: fn(AlphaBeta, SinCos) -> Dq,
+        inverse_park: fn(Dq, SinCos) -> AlphaBeta,
+    ) -> bool {
+        let (xf, yf) = (to_f64(pu(x)), to_f64(pu(y)));
+        let th = Angle(t).to_rad();
+        let (s, c) = (libm::sin(th), libm::cos(th));
+        let sc = Angle(t).sin_cos();
+        let b = bound(xf.abs() + yf.abs());
+        let dq = park(
+            AlphaBeta {
+                alpha: pu(x),
+                beta: pu(y),
+            },
+            sc,
+        );
+        let ab = inverse_park(Dq { d: pu(x), q: pu(y) }, sc);
+        lsb_err(dq.d, xf * c + yf * s) <= b
+            && lsb_err(dq.q, -xf * s + yf * c) <= b
+            && lsb_err(ab.alpha, xf * c - yf * s) <= b
+            && lsb_err(ab.beta, xf * s + yf * c) <= b
     }
 
     proptest! {
@@ -220,17 +276,17 @@ mod tests {
         /// half an LSB of rounding plus the sin/cos error (3 LSB of Q2.30) times |v|.
         #[test]
         fn park_pair_against_f64(x in any::<i32>(), y in any::<i32>(), t in any::<i32>()) {
-            let (xf, yf) = (to_f64(pu(x)), to_f64(pu(y)));
-            let th = Angle(t).to_rad();
-            let (s, c) = (libm::sin(th), libm::cos(th));
-            let sc = Angle(t).sin_cos();
-            let bound = 0.5 + 1e-6 + 2.0 * 3.0 * (xf.abs() + yf.abs()) / 64.0;
-            let dq = park(AlphaBeta { alpha: pu(x), beta: pu(y) }, sc);
-            prop_assert!(lsb_err(dq.d, xf * c + yf * s) <= bound);
-            prop_assert!(lsb_err(dq.q, -xf * s + yf * c) <= bound);
-            let ab = inverse_park(Dq { d: pu(x), q: pu(y) }, sc);
-            prop_assert!(lsb_err(ab.alpha, xf * c - yf * s) <= bound);
-            prop_assert!(lsb_err(ab.beta, xf * s + yf * c) <= bound);
+            let bound = |v: f64| 0.5 + 1e-6 + 2.0 * 3.0 * v / 64.0;
+            prop_assert!(pair_within(x, y, t, bound, park, inverse_park));
+        }
+
+        /// The pair in the MRAS's frames against f64 with the exact sin/cos: half an LSB of
+        /// rounding plus sin/cos taken to 2⁻¹⁴ (below 2⁻¹⁴ each) times |v|, for signals within
+        /// ±32 pu.
+        #[test]
+        fn frame_park_pair_against_f64(x in -1i32 << 29..1 << 29, y in -1i32 << 29..1 << 29, t in any::<i32>()) {
+            let bound = |v: f64| 0.5 + v * 1024.0;
+            prop_assert!(pair_within(x, y, t, bound, park_frame, inverse_park_frame));
         }
 
         /// Park then inverse Park returns the vector within 2 LSB for signals up to 8 pu.

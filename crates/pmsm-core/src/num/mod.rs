@@ -25,7 +25,7 @@ pub type Unit = I2F30;
 mod wide;
 #[cfg(any(test, feature = "overmodulation"))]
 pub(crate) use wide::umul;
-pub(crate) use wide::{wmul, wmul_inline};
+pub(crate) use wide::{dot_q14, wmul, wmul_inline};
 
 /// Fractional bits of [`Pu`].
 pub const PU_FRAC: u32 = 24;
@@ -302,6 +302,27 @@ pub(crate) fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
     let acc = wmul_inline(a.to_bits(), u.to_bits()) + wmul_inline(b.to_bits(), v.to_bits());
     Pu::from_bits(round_shift_sat(acc, UNIT_FRAC))
 }
+
+/// `(sin, cos)` of `sc` taken down to 2⁻¹⁴ (the low 16 of their Q2.30 bits cleared, so toward
+/// −∞), as Q2.30 bits: the frame of the control path's Park transforms
+/// ([`crate::frames::park_frame`]), whose inputs carry ADC-limited currents and PWM-limited
+/// voltages. On the grid, products with it are two 32×16 ones ([`dot_frame`]).
+#[inline(always)]
+pub(crate) fn frame_bits(sc: crate::angle::SinCos) -> (i32, i32) {
+    let low = !((1 << FRAME_SHIFT) - 1);
+    (sc.sin.to_bits() & low, sc.cos.to_bits() & low)
+}
+
+/// `a · u + b · v` with one rounding, saturated, for `u`, `v` of [`frame_bits`] (or their
+/// negations): the kernel of the control path's Park transforms. On ARMv6-M half the
+/// partial products of [`dot_unit`]'s.
+#[inline(always)]
+pub(crate) fn dot_frame(a: Pu, u: i32, b: Pu, v: i32) -> Pu {
+    Pu::from_bits(wide::dot_q14(a.to_bits(), u, b.to_bits(), v))
+}
+
+/// The bits of a [`Unit`] below the 2⁻¹⁴ that [`frame_bits`] keeps.
+pub(crate) const FRAME_SHIFT: u32 = UNIT_FRAC - 14;
 
 /// A constant factor with its own binary point: `value = mantissa · 2^−shift`.
 ///

@@ -1,6 +1,6 @@
 //! Unit tests of `num`.
 
-use super::wide::{umul_halves, wmul_halves};
+use super::wide::{dot_q14_halves, umul_halves, wmul_halves};
 use super::*;
 use proptest::prelude::*;
 
@@ -180,6 +180,21 @@ fn wide_multiply_from_halves_is_exact_at_the_edges() {
         for &b in &edges {
             let exact = a as i64 * b as i64;
             assert_eq!(wmul_halves(a, b), exact, "{a} {b}");
+            for (u, v) in [
+                (1 << 14, 0),
+                (-(1 << 14), 1),
+                (23_170, -23_170),
+                (-32_767, 32_767),
+                (32_767, 0),
+                (-32_768, 32_767),
+            ] {
+                let exact = round_shift_sat((a as i64 * u as i64 + b as i64 * v as i64) << 16, 30);
+                assert_eq!(
+                    dot_q14_halves(a, u << 16 | 0xffff, b, v << 16),
+                    exact,
+                    "{a} {b} {u} {v}"
+                );
+            }
             assert_eq!(
                 umul_halves(a as u32, b as u32),
                 a as u32 as u64 * b as u32 as u64
@@ -253,6 +268,28 @@ proptest! {
         let (ua, ub) = (a as u32, b as u32);
         prop_assert_eq!(umul_halves(ua, ub), ua as u64 * ub as u64);
         prop_assert_eq!(umul(ua, ub), ua as u64 * ub as u64);
+    }
+
+    /// The Cortex-M0's dot product of 32×16 products is the exact one of `u`, `v` taken down
+    /// to 2⁻¹⁴, rounded and saturated, for every `a`, `b` and every `u`, `v` of the contract
+    /// (`|u| + |v| < 2` once so taken).
+    #[test]
+    fn dot_q14_from_halves_is_exact(
+        a in any::<i32>(),
+        b in any::<i32>(),
+        u in any::<i32>(),
+        f in 0.0f64..1.0,
+        low in any::<u16>(),
+    ) {
+        let uh = (u >> 16).max(-(1 << 15) + 1);
+        let room = (1i32 << 16) - 1 - uh.abs();
+        let vh = ((room as f64 * (2.0 * f - 1.0)) as i32).clamp(-(1 << 15), (1 << 15) - 1);
+        let (u, v) = (uh << 16 | (u & 0xffff), vh << 16 | i32::from(low));
+        let exact = round_shift_sat((a as i64 * uh as i64 + b as i64 * vh as i64) << 16, 30);
+        prop_assert_eq!(dot_q14_halves(a, u, b, v), exact);
+        let (u, v) = (uh << 16, vh << 16);
+        prop_assert_eq!(dot_q14(a, u, b, v), exact);
+        prop_assert_eq!(dot_q14_halves(a, u, b, v), exact);
     }
 
     #[test]

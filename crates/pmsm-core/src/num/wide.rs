@@ -104,3 +104,52 @@ pub(super) const fn umul_halves(a: u32, b: u32) -> u64 {
     let mid = (ah * bl) as u64 + (al * bh) as u64;
     (((ah * bh) as u64) << 32) + (mid << 16) + (al * bl) as u64
 }
+
+/// `a·u + b·v` rounded by 2³⁰ and saturated as [`super::round_shift_sat`] does, for `u`, `v`
+/// on the 2⁻¹⁴ grid (Q2.30 bits whose low 16 are zero) with `|u| + |v| < 2` (a unit vector's
+/// components, or those of any vector shorter than √2): the dot product of the control
+/// path's Park transforms ([`super::dot_frame`]).
+///
+/// A Cortex-M3/M4 forms it with `SMULL` and `SMLAL`. On ARMv6-M each product is two 16×16
+/// ones ([`dot_q14_halves`]) instead of the four of [`wmul_halves`], with no 64-bit sum on
+/// the common path. The same bits on every core (tests).
+#[inline(always)]
+pub(crate) fn dot_q14(a: i32, u: i32, b: i32, v: i32) -> i32 {
+    #[cfg(all(target_arch = "arm", not(target_has_atomic = "32")))]
+    {
+        dot_q14_halves(a, u, b, v)
+    }
+    #[cfg(not(all(target_arch = "arm", not(target_has_atomic = "32"))))]
+    {
+        super::round_shift_sat(a as i64 * u as i64 + b as i64 * v as i64, 30)
+    }
+}
+
+/// [`dot_q14`] from 16-bit halves: `x = x_h 2¹⁶ + x_l` for `a` and `b`, balanced as in
+/// [`wmul_halves`] (both halves within ±2¹⁵), and `u_h = u >> 16`, `v_h = v >> 16` with
+/// `|u_h| + |v_h| < 2¹⁶`. The two sums of partial products, `hi` of the high halves and `lo`
+/// of the low ones, are each below 2³¹ in magnitude, and the exact sum is
+/// `hi 2³² + lo 2¹⁶`, so its rounding by 2³⁰ is `4 hi + ((lo + 2¹³) >> 14)`: 32-bit
+/// arithmetic while `|hi| < 2²⁸` (results within ±2³⁰), the exact 64-bit rounding beyond.
+#[inline(always)]
+#[allow(dead_code)] // used on ARMv6-M only, and by the tests
+pub(super) fn dot_q14_halves(a: i32, u: i32, b: i32, v: i32) -> i32 {
+    let (u, v) = (u >> 16, v >> 16);
+    let (al, bl) = (a as i16 as i32, b as i16 as i32);
+    let (ah, bh) = ((a >> 16) - (al >> 16), (b >> 16) - (bl >> 16));
+    let hi = ah.wrapping_mul(u).wrapping_add(bh.wrapping_mul(v));
+    let lo = al.wrapping_mul(u).wrapping_add(bl.wrapping_mul(v));
+    if hi.unsigned_abs() < 1 << 28 {
+        (hi << 2) + (lo.wrapping_add(1 << 13) >> 14)
+    } else {
+        wide_dot_q14(hi, lo)
+    }
+}
+
+/// [`dot_q14_halves`] beyond ±2³⁰: the exact sum rounded and saturated. Rare, so out of line.
+#[cold]
+#[inline(never)]
+#[allow(dead_code)] // used on ARMv6-M only, and by the tests
+fn wide_dot_q14(hi: i32, lo: i32) -> i32 {
+    super::round_shift_sat(((hi as i64) << 32) + ((lo as i64) << 16), 30)
+}

@@ -266,12 +266,12 @@ impl AnyEstimator {
 /// The rotor frame an estimator already rotated the current into, for the drive to reuse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Frame {
-    /// `sin_cos(θ̂)` of the last estimate, bit for bit.
+    /// sin/cos of the last estimate's angle `θ̂`, taken to 2⁻¹⁴ (`angle::sin_cos_frame`).
     pub sc: crate::angle::SinCos,
-    /// The measured current of the last update in that frame, bit for bit what `park` of the
-    /// same current gives.
+    /// The measured current of the last update in that frame, bit for bit what `park_frame`
+    /// of the same current gives.
     pub i_dq: crate::frames::Dq,
-    /// sin/cos of the next update's angle, `θ̂ + ω̂ T_s`.
+    /// sin/cos of the next update's angle, `θ̂ + ω̂ T_s`, taken to 2⁻¹⁴ likewise.
     pub sc_next: crate::angle::SinCos,
 }
 

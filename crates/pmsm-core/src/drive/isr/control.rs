@@ -6,7 +6,7 @@ use crate::angle::{Angle, SinCos};
 use crate::control::current::CurrentInput;
 use crate::deadtime::CurrentSource;
 use crate::drive::interface::{DriveInput, DriveOutput};
-use crate::frames::{AlphaBeta, Dq, inverse_park, park};
+use crate::frames::{AlphaBeta, Dq, inverse_park, inverse_park_frame, park};
 use crate::num::{Pu, Unit, follow};
 use crate::svpwm::SvpwmOutput;
 
@@ -60,9 +60,15 @@ impl DriveIsr {
             }
         };
         #[cfg(feature = "injection")]
-        let v_ref = inverse_park(self.with_injection(out.v), sc_mid);
+        let v_dq = self.with_injection(out.v);
         #[cfg(not(feature = "injection"))]
-        let v_ref = inverse_park(out.v, sc_mid);
+        let v_dq = out.v;
+        // In the current-model MRAS's frames, as it turns its own (to 2⁻¹⁴, `park_frame`).
+        let v_ref = if frame.is_some() {
+            inverse_park_frame(v_dq, sc_mid)
+        } else {
+            inverse_park(v_dq, sc_mid)
+        };
         // Dead-time compensation, then the modulator.
         let v_dt = self.deadtime_vector(input.vdc, i_dq, i_ref, sc_mid);
         #[cfg(feature = "overmodulation")]

@@ -2,9 +2,9 @@
 //! adjustable model, the adaptation law and the integration of the angle (module docs).
 
 use super::*;
-use crate::angle::{Angle, SinCos};
+use crate::angle::{Angle, SinCos, sin_cos_frame};
 use crate::frames::{AlphaBeta, Dq};
-use crate::num::{Coef, Pu, UNIT_FRAC, Unit, round_shift_sat, wmul_inline};
+use crate::num::{Coef, FRAME_SHIFT, Pu, UNIT_FRAC, Unit, dot_q14, round_shift_sat, wmul_inline};
 use crate::observer::{Estimate, Estimator, ObserverInput};
 
 /// The current-model MRAS estimator (configuration and state).
@@ -15,15 +15,15 @@ pub struct MrasCurrent {
     pub(super) i_hat: Dq,
     /// Estimated angle of the last update, 2⁶⁴ per turn.
     pub(super) theta: u64,
-    /// sin/cos of the angle of the last update (the frame of `i_hat`).
+    /// sin/cos of the angle of the last update taken to 2⁻¹⁴ (the frame of `i_hat`).
     pub(super) sc: SinCos,
     /// The angle of the next update, `θ̂ + ω̂ T_s` (eq. 23 with the speed held over the
-    /// coming period), 2⁶⁴ per turn, and its sin/cos: computed at the end of an update, so
+    /// coming period), 2⁶⁴ per turn, and its sin/cos (to 2⁻¹⁴): computed at the end of an update, so
     /// that the drive turns its voltage to the coming period's mid angle from the two frames
     /// without a sin/cos of its own (see [`MrasCurrent::next_frame`]).
     pub(super) theta_next: u64,
     pub(super) sc_next: SinCos,
-    /// The measured current of the last update in that frame (`park(i, sc)`).
+    /// The measured current of the last update in that frame (`park_frame(i, sc)`).
     pub(super) i_dq: Dq,
     /// Speed integrator `I`, Q9.55, within `±ω_max`.
     pub(super) integ: i64,
@@ -89,10 +89,10 @@ impl MrasCurrent {
         self.config.xi_scale.apply(self.xi)
     }
 
-    /// The frame of the last estimate: `sin_cos(θ̂)` of [`Estimator::estimate`]'s angle (bit for
-    /// bit what `estimate().theta.sin_cos()` gives) and the measured current of the last
-    /// update rotated into it (bit for bit `park(i, sin_cos(θ̂))`; zero after a reset). The
-    /// drive reuses both instead of computing them again.
+    /// The frame of the last estimate: `sin_cos(θ̂)` of [`Estimator::estimate`]'s angle taken
+    /// to 2⁻¹⁴ as the control path's transforms take it ([`sin_cos_frame`]), and the measured
+    /// current of the last update rotated into it (bit for bit `park_frame(i, sin_cos(θ̂))`;
+    /// zero after a reset). The drive reuses both instead of computing them again.
     #[cfg_attr(feature = "select-estimators", allow(dead_code))] // the drive's, with the MRAS
     pub(crate) fn frame(&self) -> (SinCos, Dq) {
         (self.sc, self.i_dq)
@@ -111,7 +111,7 @@ impl MrasCurrent {
     fn prepare_next(&mut self, omega: Pu) {
         let step = (wide(omega.to_bits(), self.config.turn_per_speed) as u64) << TURN_SHIFT;
         self.theta_next = self.theta.wrapping_add(step);
-        self.sc_next = angle_of(self.theta_next).sin_cos();
+        self.sc_next = sin_cos_frame(angle_of(self.theta_next));
     }
 
     fn angle(&self) -> Angle {
@@ -190,34 +190,45 @@ fn model_mac(a: Coef<MODEL_FRAC>, x: Pu, b: Coef<MODEL_FRAC>, y: Pu, offset: i64
     ))
 }
 
-/// Park's rotation to the frame of `sc`, as [`crate::frames::park`] (the same products and
-/// rounding, so the same bits).
+/// Park's rotation to the frame of `sc`, as [`crate::frames::park_frame`] (the same products
+/// and rounding, so the same bits).
 #[inline(always)]
 fn park_in(v: AlphaBeta, sc: SinCos) -> Dq {
     let (a, b) = (v.alpha.to_bits(), v.beta.to_bits());
+    // The frames are kept on the grid ([`sin_cos_frame`]).
     let (s, c) = (sc.sin.to_bits(), sc.cos.to_bits());
     Dq {
-        d: Pu::from_bits(dot30(a, c, b, s)),
-        q: Pu::from_bits(dot30(b, c, a, neg(sc.sin))),
+        d: Pu::from_bits(dot_q14(a, c, b, s)),
+        q: Pu::from_bits(dot_q14(b, c, a, s.wrapping_neg())),
     }
 }
 
-/// sin/cos of the frame advance `Δ = θ̂_k − θ̂_{k−1}` from the sin/cos of the two frames
-/// (`sin Δ = s_k c_{k−1} − c_k s_{k−1}`, `cos Δ = c_k c_{k−1} + s_k s_{k−1}`, one rounding each)
-/// instead of a third `sin_cos`; exactly `(0, 1)` when the frame did not move. The two
-/// products carry the sin/cos error of both frames (a few LSB of Q2.30, as `sin_cos(Δ)` has).
+/// A sin or cos taken to 2⁻¹⁴ ([`frame_bits`]), in Q2.14.
+#[inline(always)]
+fn q14(u: Unit) -> i32 {
+    u.to_bits() >> FRAME_SHIFT
+}
+
+/// The rotation that takes the model from the frame of `prev` to that of `now`, as the
+/// transforms take the frames (to 2⁻¹⁴, [`q14`]). A frame so taken is a rotation by its
+/// angle `φ` times its length `ρ`, within 10⁻⁴ of 1: the measured currents come scaled by
+/// `ρ_k`, the voltage by `ρ_{k−1}`. The model follows if its rotation is
+/// `(ρ_k/ρ_{k−1}) (cos Δφ, sin Δφ)`: the products `c_k c_{k−1} + s_k s_{k−1}` and
+/// `s_k c_{k−1} − c_k s_{k−1}` (exact in Q2.28: each below 2²⁸) divided by `ρ²_{k−1}`, taken
+/// as the factor `2 − ρ²_{k−1}` (within 10⁻⁸): its error would otherwise act on the model
+/// at every sample, as a resistance error of `L/(R T_s)` times it. All 32-bit products.
 #[inline(always)]
 fn advance(prev: SinCos, now: SinCos) -> SinCos {
-    if prev == now {
-        return SinCos {
-            sin: Unit::ZERO,
-            cos: Unit::from_bits(1 << UNIT_FRAC),
-        };
-    }
-    let (s, c) = (now.sin.to_bits(), now.cos.to_bits());
+    let (s, c) = (q14(now.sin), q14(now.cos));
+    let (sp, cp) = (q14(prev.sin), q14(prev.cos));
+    // 1 − ρ², Q2.28: each component taken down by less than 2⁻¹⁴, so |1 − ρ²| < 2√2·2⁻¹⁴
+    // and |e| < 2¹⁵·⁵; with |x >> 13| ≤ 2¹⁵ + 4 the product stays below 2³¹.
+    let e = (1 << 28) - (cp * cp + sp * sp);
+    // x (2 − ρ²) = x + x (1 − ρ²), the small product from x's top bits (|x| < 2²⁸·1.001).
+    let unit = |x: i32| Unit::from_bits((x + (((x >> 13) * e) >> 15)) << (UNIT_FRAC - 28));
     SinCos {
-        sin: Unit::from_bits(dot30(s, prev.cos.to_bits(), c, neg(prev.sin))),
-        cos: Unit::from_bits(dot30(c, prev.cos.to_bits(), s, prev.sin.to_bits())),
+        sin: unit(s * cp - c * sp),
+        cos: unit(c * cp + s * sp),
     }
 }
 
@@ -357,7 +368,7 @@ impl Estimator for MrasCurrent {
     fn reset(&mut self, theta: Angle, omega: Pu) {
         let omega = omega.max(-self.config.omega_max).min(self.config.omega_max);
         self.theta = (theta.0 as u32 as u64) << 32;
-        self.sc = theta.sin_cos();
+        self.sc = sin_cos_frame(theta);
         self.i_dq = Dq::default();
         self.integ = (omega.to_bits() as i64) << INTEG_EXTRA;
         self.i_hat = Dq::default();
