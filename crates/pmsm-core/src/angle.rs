@@ -17,7 +17,7 @@
 //! Measured error against f64 over the whole input range: see `docs/PERFORMANCE.md`; the
 //! tests bound it at 3 LSB of Q2.30 (2.8e−9).
 
-use crate::num::{UNIT_FRAC, Unit, round_shift, round_shift_sat, wmul, wmul_inline};
+use crate::num::{UNIT_FRAC, Unit, on_frame_grid, round_shift, round_shift_sat, wmul, wmul_inline};
 use core::ops::{Add, Neg, Sub};
 
 /// Electrical angle, one turn = 2³² (LSB = 2π/2³² ≈ 1.46e−9 rad), range [−π, π), wrapping.
@@ -168,22 +168,30 @@ fn table(k: u32) -> i64 {
     }
 }
 
-/// Sine and cosine of `angle` (see the module docs for the method and its error).
-pub fn sin_cos(angle: Angle) -> SinCos {
+/// The nearest of 1024 points per turn to `angle`: the signed remainder `angle − a` in
+/// [−2²¹, 2²¹) counts, and `sin a`, `cos a` from the table (Q2.30).
+#[inline(always)]
+fn table_point(angle: Angle) -> (i32, i32, i32) {
     let turn = angle.0 as u32;
-    // Round to the nearest of 1024 points per turn; the remainder is signed.
     let nearest = turn.wrapping_add(1 << (REM_BITS - 1)) >> REM_BITS; // 0..1024 (wraps)
-    let rem = turn.wrapping_sub(nearest << REM_BITS) as i32; // [−2^21, 2^21)
+    let rem = turn.wrapping_sub(nearest << REM_BITS) as i32;
     let quadrant = (nearest >> 8) & 3;
     let k = nearest & 0xff;
     // sin and cos of the table point within its quadrant, then rotate to the quadrant.
-    let (s0, c0) = (table(k), table(QUARTER_POINTS as u32 - k));
+    // Table values are within [0, 2³⁰]: as i32 their negations cannot wrap.
+    let (s0, c0) = (table(k) as i32, table(QUARTER_POINTS as u32 - k) as i32);
     let (s_a, c_a) = match quadrant {
         0 => (s0, c0),
         1 => (c0, -s0),
         2 => (-s0, -c0),
         _ => (-c0, s0),
     };
+    (rem, s_a, c_a)
+}
+
+/// Sine and cosine of `angle` (see the module docs for the method and its error).
+pub fn sin_cos(angle: Angle) -> SinCos {
+    let (rem, s_a, c_a) = table_point(angle);
     // δ in radians, Q2.30: rem · 2π/2^32 · 2^30 = rem · π/2; |δ| ≤ π/1024 < 2^21.7 LSB. The
     // one product that needs all its bits is a 32×32→64 one (`wmul`).
     let delta = round_shift(wmul_inline(rem, HALF_PI_Q30 as i32), UNIT_FRAC);
@@ -194,7 +202,6 @@ pub fn sin_cos(angle: Angle) -> SinCos {
     let d3 = d2 * (delta >> 10); // δ³ in Q.50, |d3| < 2^25.1
     const SIXTH_Q16: i32 = 10_923; // 1/6 in Q0.16
     let sin_d = delta - (((d3 >> 8) * SIXTH_Q16 + (1 << 27)) >> 28); // δ − δ³/6
-    let (s_a, c_a) = (s_a as i32, c_a as i32);
     // x·(1 − cos δ) = x·δ²/2 for a table value |x| ≤ 2^30: x to 2^15 steps (0.1 LSB).
     let half_d2 = |x: i32| (((x + (1 << 14)) >> 15) * d2 + (1 << 15)) >> 16;
     // sin(a+δ) = sin a − sin a (1 − cos δ) + cos a sin δ; cos(a+δ) likewise (|sin δ| < 2²²
@@ -207,27 +214,15 @@ pub fn sin_cos(angle: Angle) -> SinCos {
     }
 }
 
-/// Sine and cosine of `angle` taken down to 2⁻¹⁴, as the control path's transforms take a
-/// frame (`frame_bits`): the table of [`sin_cos`], the remainder applied with 32-bit products
+/// Sine and cosine of `angle` taken down to 2⁻¹⁴, as the transforms in the current-model
+/// MRAS's frames take them (`num::frame_bits`): the table of [`sin_cos`], the remainder applied with 32-bit products
 /// only (its terms need 2⁻²⁰, not 2⁻³⁰), so no 32×32→64 product on any core. Within 2⁻²² of
 /// the exact value before it is taken down (tests), so each is the exact value's step of the
 /// grid or, within 2⁻²² of a step, its neighbour.
-// Out of line: inlined into the MRAS's update it saved nothing (`scripts/pil.sh`: one
-// instruction more on the Cortex-M4, five on the Cortex-M0).
+// Out of line: inlined into the MRAS's update it is no shorter (`scripts/pil.sh`).
 #[inline(never)]
 pub(crate) fn sin_cos_frame(angle: Angle) -> SinCos {
-    let turn = angle.0 as u32;
-    let nearest = turn.wrapping_add(1 << (REM_BITS - 1)) >> REM_BITS;
-    let rem = turn.wrapping_sub(nearest << REM_BITS) as i32; // [−2^21, 2^21)
-    let quadrant = (nearest >> 8) & 3;
-    let k = nearest & 0xff;
-    let (s0, c0) = (table(k) as i32, table(QUARTER_POINTS as u32 - k) as i32);
-    let (s_a, c_a) = match quadrant {
-        0 => (s0, c0),
-        1 => (c0, -s0),
-        2 => (-s0, -c0),
-        _ => (-c0, s0),
-    };
+    let (rem, s_a, c_a) = table_point(angle);
     // δ in Q8.24 radians: rem · 2π/2³² · 2²⁴ = rem π/2⁷, as (rem/4) · round(π/2⁶ · 2¹⁶) / 2¹⁵
     // (below 2³¹ before the shift); |δ| < 51 473.
     const PI_Q16_64: i32 = 3217;
@@ -240,10 +235,9 @@ pub(crate) fn sin_cos_frame(angle: Angle) -> SinCos {
     // below 2³¹ (2¹⁵ · 51 473 and 2¹⁵ · 40 402).
     let sin = s_a - ((s15 * d2) >> 18) + ((c15 * delta) >> 9);
     let cos = c_a - ((c15 * d2) >> 18) - ((s15 * delta) >> 9);
-    let low = !((1 << (UNIT_FRAC - 14)) - 1);
     SinCos {
-        sin: Unit::from_bits(sin & low),
-        cos: Unit::from_bits(cos & low),
+        sin: Unit::from_bits(on_frame_grid(sin)),
+        cos: Unit::from_bits(on_frame_grid(cos)),
     }
 }
 

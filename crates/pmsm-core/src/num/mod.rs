@@ -25,7 +25,7 @@ pub type Unit = I2F30;
 mod wide;
 #[cfg(any(test, feature = "overmodulation"))]
 pub(crate) use wide::umul;
-pub(crate) use wide::{dot_q14, wmul, wmul_inline};
+pub(crate) use wide::{wmul, wmul_inline};
 
 /// Fractional bits of [`Pu`].
 pub const PU_FRAC: u32 = 24;
@@ -303,25 +303,32 @@ pub(crate) fn dot_unit(a: Pu, u: Unit, b: Pu, v: Unit) -> Pu {
     Pu::from_bits(round_shift_sat(acc, UNIT_FRAC))
 }
 
-/// `(sin, cos)` of `sc` taken down to 2⁻¹⁴ (the low 16 of their Q2.30 bits cleared, so toward
-/// −∞), as Q2.30 bits: the frame of the control path's Park transforms
-/// ([`crate::frames::park_frame`]), whose inputs carry ADC-limited currents and PWM-limited
-/// voltages. On the grid, products with it are two 32×16 ones ([`dot_frame`]).
+/// `x` (Q2.30 bits) taken down to 2⁻¹⁴, toward −∞: the low 16 bits cleared. The grid of the
+/// current-model MRAS's frames (`angle::sin_cos_frame`), whose transforms carry ADC-limited
+/// currents and PWM-limited voltages; on it a product is 32×16 ([`dot_frame`]).
 #[inline(always)]
-pub(crate) fn frame_bits(sc: crate::angle::SinCos) -> (i32, i32) {
-    let low = !((1 << FRAME_SHIFT) - 1);
-    (sc.sin.to_bits() & low, sc.cos.to_bits() & low)
+pub(crate) const fn on_frame_grid(x: i32) -> i32 {
+    x & !((1 << FRAME_SHIFT) - 1)
 }
 
-/// `a · u + b · v` with one rounding, saturated, for `u`, `v` of [`frame_bits`] (or their
-/// negations): the kernel of the control path's Park transforms. On ARMv6-M half the
-/// partial products of [`dot_unit`]'s.
+/// `(sin, cos)` of `sc` on the frames' grid ([`on_frame_grid`]), as Q2.30 bits.
+#[inline(always)]
+pub(crate) fn frame_bits(sc: crate::angle::SinCos) -> (i32, i32) {
+    (
+        on_frame_grid(sc.sin.to_bits()),
+        on_frame_grid(sc.cos.to_bits()),
+    )
+}
+
+/// `a · u + b · v` with one rounding, saturated, for `u`, `v` on the frames' grid
+/// ([`on_frame_grid`]; `|u| + |v| < 2`): the kernel of the transforms in the MRAS's frames.
+/// On ARMv6-M half the partial products of [`dot_unit`]'s.
 #[inline(always)]
 pub(crate) fn dot_frame(a: Pu, u: i32, b: Pu, v: i32) -> Pu {
     Pu::from_bits(wide::dot_q14(a.to_bits(), u, b.to_bits(), v))
 }
 
-/// The bits of a [`Unit`] below the 2⁻¹⁴ that [`frame_bits`] keeps.
+/// The bits of a [`Unit`] below the 2⁻¹⁴ that [`on_frame_grid`] keeps.
 pub(crate) const FRAME_SHIFT: u32 = UNIT_FRAC - 14;
 
 /// A constant factor with its own binary point: `value = mantissa · 2^−shift`.

@@ -1,6 +1,6 @@
 //! Unit tests of `num`.
 
-use super::wide::{dot_q14_halves, umul_halves, wmul_halves};
+use super::wide::{dot_q14, dot_q14_halves, umul_halves, wmul_halves};
 use super::*;
 use proptest::prelude::*;
 

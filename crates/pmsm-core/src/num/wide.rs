@@ -107,8 +107,8 @@ pub(super) const fn umul_halves(a: u32, b: u32) -> u64 {
 
 /// `a·u + b·v` rounded by 2³⁰ and saturated as [`super::round_shift_sat`] does, for `u`, `v`
 /// on the 2⁻¹⁴ grid (Q2.30 bits whose low 16 are zero) with `|u| + |v| < 2` (a unit vector's
-/// components, or those of any vector shorter than √2): the dot product of the control
-/// path's Park transforms ([`super::dot_frame`]).
+/// components, or those of any vector shorter than √2): the dot product of the transforms in
+/// the current-model MRAS's frames ([`super::dot_frame`]).
 ///
 /// A Cortex-M3/M4 forms it with `SMULL` and `SMLAL`. On ARMv6-M each product is two 16×16
 /// ones ([`dot_q14_halves`]) instead of the four of [`wmul_halves`], with no 64-bit sum on

@@ -3,8 +3,8 @@
 
 use super::*;
 use crate::angle::{Angle, SinCos, sin_cos_frame};
-use crate::frames::{AlphaBeta, Dq};
-use crate::num::{Coef, FRAME_SHIFT, Pu, UNIT_FRAC, Unit, dot_q14, round_shift_sat, wmul_inline};
+use crate::frames::{AlphaBeta, Dq, park_on_grid};
+use crate::num::{Coef, FRAME_SHIFT, Pu, UNIT_FRAC, Unit, round_shift_sat, wmul_inline};
 use crate::observer::{Estimate, Estimator, ObserverInput};
 
 /// The current-model MRAS estimator (configuration and state).
@@ -190,20 +190,13 @@ fn model_mac(a: Coef<MODEL_FRAC>, x: Pu, b: Coef<MODEL_FRAC>, y: Pu, offset: i64
     ))
 }
 
-/// Park's rotation to the frame of `sc`, as [`crate::frames::park_frame`] (the same products
-/// and rounding, so the same bits).
+/// Park's rotation to the frame of `sc`, kept on the grid of the frames ([`sin_cos_frame`]).
 #[inline(always)]
 fn park_in(v: AlphaBeta, sc: SinCos) -> Dq {
-    let (a, b) = (v.alpha.to_bits(), v.beta.to_bits());
-    // The frames are kept on the grid ([`sin_cos_frame`]).
-    let (s, c) = (sc.sin.to_bits(), sc.cos.to_bits());
-    Dq {
-        d: Pu::from_bits(dot_q14(a, c, b, s)),
-        q: Pu::from_bits(dot_q14(b, c, a, s.wrapping_neg())),
-    }
+    park_on_grid(v, sc.sin.to_bits(), sc.cos.to_bits())
 }
 
-/// A sin or cos taken to 2⁻¹⁴ ([`frame_bits`]), in Q2.14.
+/// A sin or cos of the frames ([`sin_cos_frame`]), on the grid of 2⁻¹⁴, in Q2.14.
 #[inline(always)]
 fn q14(u: Unit) -> i32 {
     u.to_bits() >> FRAME_SHIFT
