@@ -82,7 +82,7 @@ fn polar_rows() -> [Row; 2] {
     }
     [
         Row {
-            name: "atan2 (CORDIC)",
+            name: "atan2 (`polar`)",
             domain: "2·10⁶ random vectors, components log-uniform over the Q8.24 range",
             points: RANDOM,
             max_lsb: ang,
@@ -90,7 +90,7 @@ fn polar_rows() -> [Row; 2] {
             physical: format!("{:.2e}°", ang * Angle::RAD_PER_LSB.to_degrees()),
         },
         Row {
-            name: "magnitude (CORDIC)",
+            name: "magnitude (`polar`)",
             domain: "same vectors",
             points: RANDOM,
             max_lsb: mag,

@@ -5,8 +5,10 @@
 //! carries through). In the open loop of the reversal the load turns the rotor forwards while
 //! the frame turns backwards; the estimate handed over is half a turn off the rotor. Each pass
 //! back through the open loop handed over again and reset the checks, Run and OpenLoop taking
-//! turns every 2 ms for 1.2 s without a fault. The first return within the checks' settling
-//! time names the lost lock.
+//! turns every 2 ms for 1.2 s without a fault. Now the lost rotor is named at once: by the
+//! handover's check of the estimate against the open loop's frame (`handover`), or by the
+//! first return within the checks' settling time (`loss_of_lock`); which of the two comes
+//! first changes with a volt of the bus.
 
 use pmsm_cli::commands::simulate::run_scenario;
 use pmsm_cli::commands::simulate::stats::first_fault;
@@ -85,7 +87,11 @@ fn a_reversal_the_load_overpowers_ends_in_a_named_fault() {
             .filter(|r| r.t_s >= off.t_s && r.t_s < fault.t_s && r.state == DriveState::Run)
             .count() as f64;
     println!("{closed_ms:.1} ms of it in the closed loop");
-    assert_eq!(fault.fault(), "loss_of_lock");
+    assert!(
+        matches!(fault.fault(), "loss_of_lock" | "handover"),
+        "{}",
+        fault.fault()
+    );
     assert!((0.0..=100.0).contains(&delay_ms), "{delay_ms} ms");
     assert!(closed_ms <= 10.0, "{closed_ms} ms");
     assert!(handovers <= 1, "{handovers}");

@@ -71,7 +71,7 @@
 //! - self-commissioning ([`Identify`]): R, L_d, L_q, ψ, J and B measured at start-up;
 //! - the fault recorder ([`FaultRecorder`]): the last samples before a fault, per unit, for a
 //!   replay on the host;
-//! - numbers: [`Pu`], [`Unit`], [`Angle`], [`polar`] (CORDIC), and the per-unit bases
+//! - numbers: [`Pu`], [`Unit`], [`Angle`], [`polar`] (atan2 and magnitude), and the per-unit bases
 //!   [`PerUnit`];
 //! - for tools and tests rather than firmware: the design's constants ([`tuning`]), the
 //!   double-precision references of closed-form laws ([`reference`](mod@reference)) and the parameter checks

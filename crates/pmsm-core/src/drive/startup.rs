@@ -340,7 +340,7 @@ mod tests {
     use crate::units::PerUnit;
 
     /// The alignment ends at the angle of the last sample's current `(I, i_β)`, against the
-    /// `f64` `atan2` within 10⁻⁵ rad (the CORDIC's rounding), for β currents up to ±I; the
+    /// `f64` `atan2` within 10⁻⁵ rad (`polar`'s rounding), for β currents up to ±I; the
     /// frame is a quarter turn ahead over the first eighth of the samples, then zero; the d
     /// current ramps from zero to `I` over that eighth, and again from zero until the half (the
     /// q reference the frame's measured q current).

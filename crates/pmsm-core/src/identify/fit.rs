@@ -134,7 +134,7 @@ pub fn magnet_flux(psi_c: (f32, f32), i_a: f32, ld_h: f32, lq_h: f32) -> (f32, f
     let (x, y) = psi_c;
     let (a, b) = (x - lq_h * i_a, -y);
     // cos δ and sin δ straight from the vector; δ itself (reported only) from the core's
-    // CORDIC, which the drive links already.
+    // `polar`, which the drive links already.
     let h = sqrt(a * a + b * b);
     let (s, c) = if h > 0.0 { (b / h, a / h) } else { (0.0, 1.0) };
     let delta = crate::cordic::polar(pu_from_f64(c as f64), pu_from_f64(s as f64))

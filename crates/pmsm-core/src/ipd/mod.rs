@@ -73,7 +73,7 @@
 //! # Formats
 //!
 //! Currents and voltages [`Pu`] Q8.24; angles [`Angle`]; duties from [`SvpwmConfig`] (Q2.30).
-//! The arithmetic is a CORDIC `atan2` and comparisons scaled by [`Gain`]s: no division.
+//! The arithmetic is an `atan2` (`polar`) and comparisons scaled by [`Gain`]s: no division.
 
 use crate::angle::{Angle, SinCos};
 use crate::cordic::polar;

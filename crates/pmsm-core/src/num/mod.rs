@@ -22,7 +22,9 @@ pub type Pu = I8F24;
 /// Unit-range quantity (sin, cos, components of a unit vector): Q2.30, range [−2, 2), LSB 2⁻³⁰.
 pub type Unit = I2F30;
 
+mod gain;
 mod wide;
+pub(crate) use gain::{Gain, round_shift_var};
 #[cfg(any(test, feature = "overmodulation"))]
 pub(crate) use wide::umul;
 pub(crate) use wide::{wmul, wmul_inline};
@@ -173,6 +175,17 @@ pub(crate) fn mul_q19(x: i32, c: u32) -> i32 {
     mul_u16(x, c) >> 3
 }
 
+/// One Newton step toward `2⁶¹/d_n` for `d_n` in `[2³⁰, 2³¹)` from `r` (at most `2³¹`, within
+/// `2⁻⁷` of it): on `f(r) = 1/r − d_n/2⁶¹`, `r ← r + r (2⁶¹ − d_n r)/2⁶¹`, which squares the
+/// relative error (down to the `2⁻³¹` of the arithmetic) and stays at or below `2⁶¹/d_n`. The
+/// residual, below `2⁵⁵`, is taken to `2⁻²⁹` first so that the product stays in `i64`.
+/// [`Reciprocal::of`]'s steps and `polar`'s reciprocal.
+#[inline(always)]
+pub(crate) fn reciprocal_step(dn: i32, r: i32) -> i32 {
+    let e = (((1i64 << 61) - wmul(dn, r)) >> 29) as i32;
+    sat_i32(r as i64 + (wmul(r, e) >> 32))
+}
+
 /// `x/d` in Q2.30 for a divisor `d > 0` known only at run time (or with too wide a range
 /// for one binary point): a normalised mantissa `r ∈ [2³⁰, 2³¹)` of `2^(61 − pre)/d` and a
 /// pre-shift, so that `x/d = ((x << pre) · r) >> 31`, one product and constant shifts on the
@@ -198,12 +211,9 @@ impl Reciprocal {
         // dn >> 16 ≥ 2¹⁴; the checked form keeps a panic path out of the firmware.
         let q = u32::MAX.checked_div(dn >> 16).unwrap_or(u32::MAX);
         let mut r = ((q as i64) << 13).min(i32::MAX as i64) as i32;
-        // Newton on f(r) = 1/r − d_n/2⁶¹: r ← r + r·(2⁶¹ − d_n r)/2⁶¹; each step squares the
-        // relative error (2⁻¹⁴ → 2⁻²⁸ → below the 2⁻³¹ of the arithmetic). The residual
-        // |2⁶¹ − d_n r| < 2⁴⁸ is taken to 2⁻²⁹ first so the product stays in i64.
+        // Two Newton steps: 2⁻¹⁴ → 2⁻²⁸ → below the 2⁻³¹ of the arithmetic.
         for _ in 0..2 {
-            let e = (((1i64 << 61) - wmul(dn as i32, r)) >> 29) as i32;
-            r = sat_i32(r as i64 + (wmul(r, e) >> 32));
+            r = reciprocal_step(dn as i32, r);
         }
         Self {
             r: r.max(0),
@@ -330,124 +340,6 @@ pub(crate) fn dot_frame(a: Pu, u: i32, b: Pu, v: i32) -> Pu {
 
 /// The bits of a [`Unit`] below the 2⁻¹⁴ that [`on_frame_grid`] keeps.
 pub(crate) const FRAME_SHIFT: u32 = UNIT_FRAC - 14;
-
-/// A constant factor with its own binary point: `value = mantissa · 2^−shift`.
-///
-/// Coefficients of the core span many decades across the motor envelope (`Ts·R/L` can be
-/// 1e−5, `L/(Ts·R)` 1e4), more than one Q format holds with precision. A `Gain` keeps 30–31
-/// significant bits whatever the magnitude: [`Gain::new`] picks the shift once in the
-/// configuration, and [`Gain::apply`] is one 32×32→64 multiply and a rounding shift.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, crate::image::Words)]
-pub(crate) struct Gain {
-    mantissa: i32,
-    shift: u32,
-}
-
-impl Gain {
-    /// Zero gain.
-    pub const ZERO: Self = Self {
-        mantissa: 0,
-        shift: 1,
-    };
-
-    /// The gain closest to `value`, or `None` if it is not finite or its magnitude is
-    /// outside [2⁻³⁰, 2³⁰) (zero is accepted).
-    pub fn new(value: f64) -> Option<Self> {
-        if !value.is_finite() {
-            return None;
-        }
-        if value == 0.0 {
-            return Some(Self::ZERO);
-        }
-        let mag = libm::fabs(value);
-        if !(libm::ldexp(1.0, -30)..=libm::ldexp(1.0, 30)).contains(&mag) {
-            return None;
-        }
-        // Largest shift that keeps |mantissa| < 2^31, capped to 62 (the product shift).
-        let exponent = libm::ilogb(mag); // mag in [2^e, 2^(e+1))
-        let mut shift = (30 - exponent).clamp(1, 62) as u32;
-        let mut m = libm::round(libm::ldexp(value, shift as i32));
-        if libm::fabs(m) >= 2_147_483_648.0 && shift > 1 {
-            // Rounded up to 2^31: one bit less.
-            shift -= 1;
-            m = libm::round(libm::ldexp(value, shift as i32));
-        }
-        if m > i32::MAX as f64 || m < i32::MIN as f64 {
-            return None;
-        }
-        Some(Self {
-            mantissa: m as i32,
-            shift,
-        })
-    }
-
-    /// The gain `mantissa · 2^−shift` (`shift` clamped to 1..=62).
-    pub(crate) const fn from_raw(mantissa: i32, shift: u32) -> Self {
-        let shift = if shift < 1 {
-            1
-        } else if shift > 62 {
-            62
-        } else {
-            shift
-        };
-        Self { mantissa, shift }
-    }
-
-    /// The gain's value as a float (exact).
-    pub fn to_f64(self) -> f64 {
-        libm::ldexp(self.mantissa as f64, -(self.shift as i32))
-    }
-
-    /// `gain · x` for a signal in any Q format, in the same format; rounded, saturated:
-    /// bit for bit [`round_shift_sat`] of the exact product by the gain's shift, through
-    /// [`round_shift_var`] (the shift is known only at run time).
-    #[inline(always)]
-    pub fn apply_bits(self, x: i32) -> i32 {
-        round_shift_var(wmul(x, self.mantissa), self.shift)
-    }
-
-    /// `gain · x` for a [`Pu`] signal, rounded to nearest and saturated.
-    #[inline(always)]
-    pub fn apply(self, x: Pu) -> Pu {
-        Pu::from_bits(self.apply_bits(x.to_bits()))
-    }
-}
-
-/// [`round_shift_sat`] by a shift known only at run time (a [`Gain`]'s, the CORDIC's
-/// magnitude), bit for bit, for `shift` in 1..=62 and `|p| ≤ 2⁶²` (a product of two `i32`).
-/// A 64-bit shift by a run-time amount with its saturation test is long; here the two cases
-/// are taken apart:
-/// - Beyond 32 (a gain below 2⁻², whose mantissa keeps 31 bits), `p` shifted is below 2³⁰:
-///   nothing to saturate, and the rounding `(p + 2^(s−1)) >> s` reads the high word alone,
-///   `(hi + 2^(s−33)) >> (s − 32)` (the low word adds less than one unit of the high word's,
-///   which the shift drops). Three instructions.
-/// - Up to 32, the rounded shift, kept when the high word shows that it fits (the common
-///   case); the rails out of line.
-#[inline(always)]
-pub(crate) fn round_shift_var(p: i64, shift: u32) -> i32 {
-    let s = shift;
-    if s > 32 {
-        // s ≤ 62: both shifts are in range; |hi| ≤ 2³⁰ and 2^(s−33) ≤ 2²⁹, no wrap.
-        let hi = (p >> 32) as i32;
-        (hi + (1 << ((s - 33) & 31))) >> ((s - 32) & 31)
-    } else {
-        // s in 1..=32 and |p| ≤ 2⁶²: the sum cannot wrap.
-        let q = p + (1i64 << ((s - 1) & 31));
-        let hi = (q >> 32) as i32;
-        if (hi >> ((s - 1) & 31)) == (hi >> 31) {
-            (q >> (s & 63)) as i32
-        } else {
-            rail(p, s)
-        }
-    }
-}
-
-/// [`round_shift_var`] beyond the `i32` range: [`round_shift_sat`]'s rail.
-#[cold]
-#[inline(never)]
-fn rail(p: i64, shift: u32) -> i32 {
-    round_shift_sat(p, shift)
-}
 
 /// A constant factor with a compile-time binary point: `value = bits · 2^−F`, `F` in 1..=32.
 ///

@@ -1,5 +1,6 @@
 //! Unit tests of `num`.
 
+use super::gain::shr_low_word_by_words;
 use super::wide::{dot_q14, dot_q14_halves, umul_halves, wmul_halves};
 use super::*;
 use proptest::prelude::*;
@@ -62,6 +63,25 @@ fn gain_products_at_the_extremes() {
                     Gain::from_raw(m, shift).apply_bits(x),
                     want,
                     "{m} {x} {shift}"
+                );
+            }
+        }
+    }
+}
+
+/// The low word of a 64-bit shift by 1 to 32, from the two words (ARMv6-M's form), is the
+/// shift's, for words at the extremes and every shift.
+#[test]
+fn the_low_word_of_a_shift_from_the_two_words() {
+    let words = [i32::MIN, -(1 << 30) - 7, -1, 0, 1, 0x1234_5678, i32::MAX];
+    for s in 1..=32 {
+        for hi in words {
+            for lo in words {
+                let q = ((hi as i64) << 32) | lo as u32 as i64;
+                assert_eq!(
+                    shr_low_word_by_words(q, hi, s),
+                    (q >> s) as i32,
+                    "{hi:#x} {lo:#x} {s}"
                 );
             }
         }
