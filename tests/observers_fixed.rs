@@ -346,10 +346,7 @@ fn emf_estimators_report_their_health() {
 fn lag_compensated_ao_removes_eq_13_14() {
     let m = servo();
     let b = base(&m, 48.0, 20e3);
-    let c = AoConfig::new(&m, &b, 5000.0)
-        .unwrap()
-        .lag_compensated(&b)
-        .unwrap();
+    let c = AoConfig::lag_compensated(&m, &b, 5000.0).unwrap();
     assert!(c.is_lag_compensated());
     for w_m in [300.0, 150.0, 60.0] {
         let (angle, speed, ew, et) = servo_ao_steady(c, &b, w_m);

@@ -51,7 +51,7 @@ fn the_drive_is_told_its_dead_time_apart_from_the_plant() {
     assert_eq!(plant.inverter().model().params.dead_time_s, 2e-6);
     assert_eq!(plant.inverter().model().sign_band_a, 0.0);
     // The compensation's dead-time voltage: 1.5 µs · 14 kHz · 540 V = 11.34 V, not 15.12 V.
-    let v = setup.config.deadtime().v_dead_nominal_v;
+    let v = setup.config.v_dead_nominal_v();
     assert!((v - 11.34).abs() < 1e-9, "{v}");
 
     // The hard sign in the plant, the drive told the right dead time: an ordinary start, the

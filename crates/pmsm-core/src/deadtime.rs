@@ -142,6 +142,20 @@ impl DeadTimeDesign {
             source: CurrentSource::Reference,
         }
     }
+
+    /// The distortion voltage `V_dead` this design compensates on `inverter` at its nominal
+    /// bus, V: `T_eff f_PWM V_DC + (V_sat + V_f)/2 − T_eff f_PWM (V_sat − V_f)` (docs/khlaief2012.md §4).
+    pub fn v_dead_v(&self, inverter: &InverterParams) -> f64 {
+        let (k, v_const) = self.terms(inverter);
+        k * inverter.vdc_v + v_const
+    }
+
+    /// `T_eff f_PWM` and the bus-independent part of `V_dead` (V).
+    fn terms(&self, inverter: &InverterParams) -> (f64, f64) {
+        let d = self.device;
+        let k = (inverter.dead_time_s + d.t_on_s - d.t_off_s) * inverter.pwm_hz;
+        (k, 0.5 * (d.v_sat_v + d.v_f_v) - k * (d.v_sat_v - d.v_f_v))
+    }
 }
 
 /// Configuration of the compensation.
@@ -161,10 +175,10 @@ pub struct DeadTimeConfig {
     /// [`CurrentSource::MeasuredUnderLoad`], never (`u32::MAX`) otherwise (one comparison
     /// serves both sources; computing it at run time cost the Cortex-M0 8 instructions).
     loaded_bits: u32,
-    /// The design (SI).
-    pub design: DeadTimeDesign,
-    /// `V_dead` at the nominal bus, V.
-    pub v_dead_nominal_v: f64,
+    /// Where it applies.
+    mode: DeadTimeMode,
+    /// Which current's signs it takes.
+    source: CurrentSource,
 }
 
 impl DeadTimeConfig {
@@ -185,7 +199,7 @@ impl DeadTimeConfig {
         non_negative("deadtime.t_off_s", d.t_off_s)?;
         in_range("deadtime.v_sat_v", d.v_sat_v, 0.0, 50.0)?;
         in_range("deadtime.v_f_v", d.v_f_v, 0.0, 50.0)?;
-        let k = (inverter.dead_time_s + d.t_on_s - d.t_off_s) * inverter.pwm_hz;
+        let (k, v_const) = design.terms(inverter);
         if !(0.0..0.1).contains(&k) {
             return Err(ParamError {
                 key: "deadtime.t_off_s",
@@ -201,7 +215,6 @@ impl DeadTimeConfig {
             1e-6 * base.current_a,
             10.0 * base.current_a,
         )?;
-        let v_const = 0.5 * (d.v_sat_v + d.v_f_v) - k * (d.v_sat_v - d.v_f_v);
         // band ≤ 10 I_b: at most 10·2²⁴ + 1 LSB, rounded up.
         let band_bits = libm::ceil(band / base.current_a * (1u64 << 24) as f64) as u32;
         Ok(Self {
@@ -227,8 +240,8 @@ impl DeadTimeConfig {
                 CurrentSource::MeasuredUnderLoad => MEASURED_SIGN_BANDS * band_bits,
                 CurrentSource::Measured | CurrentSource::Reference => u32::MAX,
             },
-            design,
-            v_dead_nominal_v: k * inverter.vdc_v + v_const,
+            mode: design.mode,
+            source: design.source,
         })
     }
 
@@ -263,7 +276,7 @@ impl DeadTimeConfig {
     /// Whose current's signs the compensation takes.
     #[inline(always)]
     pub(crate) fn source(&self) -> CurrentSource {
-        self.design.source
+        self.source
     }
 
     /// `V_dead` (eq. 8) for the measured bus `vdc`, per unit of `V_b`; zero for a bus at or
@@ -369,7 +382,7 @@ impl DeadTimeConfig {
     /// The command to send to the PWM for the reference `v_ref`: `v_ref + V_dt` when the mode
     /// compensates the command, else `v_ref`.
     pub fn command(&self, v_ref: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
-        if self.design.mode.compensates_command() {
+        if self.mode.compensates_command() {
             v_ref.saturating_add(v_dt)
         } else {
             v_ref
@@ -380,7 +393,7 @@ impl DeadTimeConfig {
     /// the modulator's limit) over the period: `v_cmd − V_dt` when the mode corrects the
     /// estimator (eq. 9), else `v_cmd`.
     pub fn estimator_voltage(&self, v_cmd: AlphaBeta, v_dt: AlphaBeta) -> AlphaBeta {
-        if self.design.mode.corrects_estimator() {
+        if self.mode.corrects_estimator() {
             v_cmd.saturating_sub(v_dt)
         } else {
             v_cmd
@@ -411,19 +424,31 @@ const FOUR_INV_SQRT3_Q29: i32 = crate::num::INV_SQRT3_Q31;
 mod tests {
     use super::*;
 
-    fn setup(mode: DeadTimeMode) -> (DeadTimeConfig, PerUnit) {
+    /// Motor B's default design in `mode`.
+    fn design(mode: DeadTimeMode) -> DeadTimeDesign {
         let (m, inv) = (crate::fixtures::motor_b(), crate::fixtures::inverter_b());
+        DeadTimeDesign {
+            mode,
+            ..DeadTimeDesign::default_for(&m, &inv)
+        }
+    }
+
+    fn setup(mode: DeadTimeMode) -> (DeadTimeConfig, PerUnit) {
+        let inv = crate::fixtures::inverter_b();
         let base = crate::fixtures::base_b();
-        let mut d = DeadTimeDesign::default_for(&m, &inv);
-        d.mode = mode;
-        (DeadTimeConfig::new(&inv, &base, d).unwrap(), base)
+        (
+            DeadTimeConfig::new(&inv, &base, design(mode)).unwrap(),
+            base,
+        )
     }
 
     #[test]
     fn papers_inverter_value_and_modes() {
         let (c, base) = setup(DeadTimeMode::Both);
         // 2 µs at 14 kHz on 540 V: 15.12 V (docs/khlaief2012.md §4: "about 15 V").
-        assert!((c.v_dead_nominal_v - 15.12).abs() < 1e-9);
+        let (m, inv) = (crate::fixtures::motor_b(), crate::fixtures::inverter_b());
+        let v = DeadTimeDesign::default_for(&m, &inv).v_dead_v(&inv);
+        assert!((v - 15.12).abs() < 1e-9);
         let vd = c.v_dead(base.voltage_pu(540.0));
         assert!((base.voltage_v(vd) - 15.12).abs() < 1e-5);
         assert_eq!(c.v_dead(Pu::ZERO), Pu::ZERO);
@@ -457,7 +482,7 @@ mod tests {
     #[test]
     fn beyond_band_is_the_sum_of_magnitudes_against_the_band() {
         let (c, base) = setup(DeadTimeMode::Both);
-        let band = c.design.band_a;
+        let band = design(DeadTimeMode::Both).band_a;
         assert!((band - 540.0 / (8.0 * 0.025025 * 14000.0)).abs() < 1e-12);
         for (d, q) in [
             (0.1, 0.1),
@@ -493,14 +518,14 @@ mod tests {
 
     #[test]
     fn bad_device_parameters_are_named() {
-        let (c, base) = setup(DeadTimeMode::Both);
+        let base = crate::fixtures::base_b();
         let inv = InverterParams {
             vdc_v: 540.0,
             pwm_hz: 14e3,
             dead_time_s: 2e-6,
             current_full_scale_a: 10.0,
         };
-        let mut d = c.design;
+        let mut d = design(DeadTimeMode::Both);
         d.device.t_off_s = 3e-6;
         assert!(matches!(
             DeadTimeConfig::new(&inv, &base, d),
@@ -509,7 +534,7 @@ mod tests {
                 ..
             }))
         ));
-        let mut d = c.design;
+        let mut d = design(DeadTimeMode::Both);
         d.band_a = 0.0;
         assert!(matches!(
             DeadTimeConfig::new(&inv, &base, d),

@@ -69,6 +69,9 @@ pub(crate) trait Words: Sized {
     const WORDS: usize;
     /// The fingerprint of the type's shape.
     const SCHEMA: u32;
+    /// The floating-point values among them (`f32`, `f64`; an enum's over all its variants):
+    /// none in what the interrupt side holds.
+    const FLOATS: usize = 0;
     /// Writes the value's [`Words::WORDS`] words.
     fn put(&self, out: &mut WordWriter<'_>);
     /// Reads a value written by [`Words::put`]. A word that is no value of its field marks
@@ -229,10 +232,11 @@ impl Words for bool {
 
 /// Two words, low first.
 macro_rules! double_types {
-    ($($t:ty => $name:literal, $to:expr, $from:expr);* $(;)?) => {$(
+    ($($t:ty => $name:literal, $floats:literal, $to:expr, $from:expr);* $(;)?) => {$(
         impl Words for $t {
             const WORDS: usize = 2;
             const SCHEMA: u32 = hash($name);
+            const FLOATS: usize = $floats;
             fn put(&self, out: &mut WordWriter<'_>) {
                 let b: u64 = $to(*self);
                 out.word(b as u32);
@@ -247,14 +251,15 @@ macro_rules! double_types {
     )*};
 }
 double_types!(
-    u64 => "u64", |v: u64| v, |b: u64| b;
-    i64 => "i64", |v: i64| v as u64, |b: u64| b as i64;
-    f64 => "f64", f64::to_bits, f64::from_bits;
+    u64 => "u64", 0, |v: u64| v, |b: u64| b;
+    i64 => "i64", 0, |v: i64| v as u64, |b: u64| b as i64;
+    f64 => "f64", 1, f64::to_bits, f64::from_bits;
 );
 
 impl Words for f32 {
     const WORDS: usize = 1;
     const SCHEMA: u32 = hash("f32");
+    const FLOATS: usize = 1;
     fn put(&self, out: &mut WordWriter<'_>) {
         out.word(self.to_bits());
     }
@@ -286,6 +291,7 @@ fixed_types!(
 impl<T: Words> Words for Option<T> {
     const WORDS: usize = 1 + T::WORDS;
     const SCHEMA: u32 = mix(hash("Option"), T::SCHEMA);
+    const FLOATS: usize = T::FLOATS;
     fn put(&self, out: &mut WordWriter<'_>) {
         match self {
             None => {
@@ -315,6 +321,7 @@ impl<T: Words> Words for Option<T> {
 impl<T: Words + Copy + Default, const N: usize> Words for [T; N] {
     const WORDS: usize = N * T::WORDS;
     const SCHEMA: u32 = mix(mix(hash("array"), N as u32), T::SCHEMA);
+    const FLOATS: usize = N * T::FLOATS;
     fn put(&self, out: &mut WordWriter<'_>) {
         for v in self {
             v.put(out);
@@ -332,6 +339,7 @@ impl<T: Words + Copy + Default, const N: usize> Words for [T; N] {
 impl<A: Words, B: Words> Words for (A, B) {
     const WORDS: usize = A::WORDS + B::WORDS;
     const SCHEMA: u32 = mix(mix(hash("pair"), A::SCHEMA), B::SCHEMA);
+    const FLOATS: usize = A::FLOATS + B::FLOATS;
     fn put(&self, out: &mut WordWriter<'_>) {
         self.0.put(out);
         self.1.put(out);

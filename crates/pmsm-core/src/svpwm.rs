@@ -128,8 +128,6 @@ pub struct SvpwmConfig {
     rail_q30: i32,
     /// Below this bus, duties ½ and `bus_low`.
     vdc_min: Pu,
-    /// The margin `m`.
-    pub modulation: f64,
 }
 
 impl Default for SvpwmConfig {
@@ -146,7 +144,6 @@ impl Default for SvpwmConfig {
             #[cfg(any(test, feature = "overmodulation"))]
             rail_q30: 1 << (UNIT_FRAC - 1),
             vdc_min: pu_from_f64(DEFAULT_VDC_MIN_PU),
-            modulation: 1.0,
         }
     }
 }
@@ -169,7 +166,6 @@ impl SvpwmConfig {
             #[cfg(any(test, feature = "overmodulation"))]
             rail_q30: 1 << (UNIT_FRAC - 1),
             vdc_min: pu_from_f64(vmin),
-            modulation: m,
         })
     }
 

@@ -13,6 +13,8 @@
 //! - `Words::SCHEMA` folds the type's name, its fields' and variants' names and their types'
 //!   schemas: an image read as a type of another shape, or of another build's features, is
 //!   refused rather than misread.
+//! - `Words::FLOATS` counts the `f32` and `f64` values among the words (an enum's over all
+//!   its variants): what the interrupt side keeps is checked to have none.
 
 use proc_macro::TokenStream;
 use proc_macro2::{Span, TokenStream as TokenStream2};
@@ -97,6 +99,16 @@ fn count(fields: &[Field<'_>]) -> TokenStream2 {
     let lines = fields.iter().filter(|f| !f.skip).map(|f| {
         let (ty, cfgs) = (f.ty, &f.cfgs);
         quote! { #(#cfgs)* let n = n + <#ty as crate::image::Words>::WORDS; }
+    });
+    quote! { #(#lines)* }
+}
+
+/// `let n = n + <T as Words>::FLOATS;` per imaged field, each under its cfgs: the
+/// floating-point values of a field list, starting from `n` as it is.
+fn count_floats(fields: &[Field<'_>]) -> TokenStream2 {
+    let lines = fields.iter().filter(|f| !f.skip).map(|f| {
+        let (ty, cfgs) = (f.ty, &f.cfgs);
+        quote! { #(#cfgs)* let n = n + <#ty as crate::image::Words>::FLOATS; }
     });
     quote! { #(#lines)* }
 }
@@ -191,10 +203,11 @@ fn expand(mut input: DeriveInput) -> syn::Result<TokenStream2> {
     }
     let (impl_generics, ty_generics, where_clause) = input.generics.split_for_impl();
 
-    let (words, schema_fold, put_body, get_body) = match &input.data {
+    let (words, schema_fold, floats, put_body, get_body) = match &input.data {
         Data::Struct(s) => {
             let list = fields(&s.fields)?;
             let n = count(&list);
+            let fl = count_floats(&list);
             let h = schema(&list);
             let pat = pattern(quote!(Self), &s.fields, &list);
             let put = puts(&list);
@@ -203,6 +216,7 @@ fn expand(mut input: DeriveInput) -> syn::Result<TokenStream2> {
             (
                 quote! { { let n = 0usize; #n n } },
                 quote! { { let h = crate::image::hash(#type_name); #h h } },
+                quote! { { let n = 0usize; #fl n } },
                 quote! {
                     let #pat = self;
                     #( let _ = #unused; )*
@@ -214,6 +228,7 @@ fn expand(mut input: DeriveInput) -> syn::Result<TokenStream2> {
         Data::Enum(e) => {
             let mut longest = Vec::new();
             let mut hashes = Vec::new();
+            let mut float_sums = Vec::new();
             let mut put_arms = Vec::new();
             let mut get_arms = Vec::new();
             // The fallback of a tag that names no variant: the first variant built in (each
@@ -235,6 +250,10 @@ fn expand(mut input: DeriveInput) -> syn::Result<TokenStream2> {
                 }
                 let n = count(&list);
                 let h = schema(&list);
+                let fl = count_floats(&list);
+                float_sums.push(quote! {
+                    #(#vcfgs)* let f = f + { let n = 0usize; #fl n };
+                });
                 longest.push(quote! {
                     #(#vcfgs)* let m = crate::image::max(m, { let n = 0usize; #n n });
                 });
@@ -274,6 +293,7 @@ fn expand(mut input: DeriveInput) -> syn::Result<TokenStream2> {
             (
                 quote! { { let m = 0usize; #(#longest)* 1 + m } },
                 quote! { { let h = crate::image::hash(#type_name); #(#hashes)* h } },
+                quote! { { let f = 0usize; #(#float_sums)* f } },
                 quote! { match self { #(#put_arms)* } },
                 quote! {
                     match r.word() {
@@ -297,6 +317,7 @@ fn expand(mut input: DeriveInput) -> syn::Result<TokenStream2> {
         impl #impl_generics crate::image::Words for #name #ty_generics #where_clause {
             const WORDS: usize = #words;
             const SCHEMA: u32 = #schema_fold;
+            const FLOATS: usize = #floats;
             #[allow(unused_variables)]
             fn put(&self, out: &mut crate::image::WordWriter<'_>) {
                 #put_body

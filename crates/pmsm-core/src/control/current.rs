@@ -120,16 +120,25 @@ pub struct CurrentConfig {
     /// reciprocal, in one 32-bit product with `x/v_DC` to Q16.
     vdc_per_vmax_q15: u32,
     decoupling: bool,
-    /// The design it was built from (SI), for reports.
-    pub design: CurrentDesign,
-    /// Gains actually used, SI: `[K_p,d, K_i,d, K_p,q, K_i,q]` (V/A, V/(A·s)).
-    pub gains_si: [f64; 4],
 }
 
 impl CurrentConfig {
     /// `ψ` of the feed-forward, per unit.
     pub(crate) fn psi(&self) -> Pu {
         self.psi
+    }
+
+    /// The gains in use, SI, from their fixed-point values in the bases `base` the
+    /// configuration was built in: `[K_p,d, K_i,d, K_p,q, K_i,q]` (V/A, V/(A·s)).
+    pub fn gains_si(&self, base: &PerUnit) -> [f64; 4] {
+        let z_b = base.impedance_ohm;
+        let ki = z_b / base.sample_s;
+        [
+            self.pi_d.kp() * z_b,
+            self.pi_d.ki_ts() * ki,
+            self.pi_q.kp() * z_b,
+            self.pi_q.ki_ts() * ki,
+        ]
     }
 
     /// Designs the two current controllers for `motor` sampled as in `base`.
@@ -204,8 +213,6 @@ impl CurrentConfig {
             // √3/m ≤ √3/10⁻³ < 2¹¹: below 2²⁶ in Q15; rounded up so that x/V_max is never short.
             vdc_per_vmax_q15: libm::ceil(libm::ldexp(libm::sqrt(3.0) / m, 15)) as u32,
             decoupling: design.decoupling,
-            design,
-            gains_si: [kp_d, ki_d, kp_q, ki_q],
         })
     }
 }

@@ -36,6 +36,9 @@ pub struct DriveConfig {
     pub design: DriveDesign,
     /// The motor as the drive was told it (the task's learners start from it).
     pub motor: MotorParams,
+    /// The distortion voltage `V_dead` of the inverter as the drive was told it, at its
+    /// nominal bus, V ([`crate::DeadTimeDesign::v_dead_v`]).
+    v_dead_nominal_v: f64,
     /// The estimator's coefficients ([`super::DriveIsr`] builds its state).
     pub estimator: EstimatorConfig,
     /// The current loops', the detector's (the interrupt side's controllers hold them) and
@@ -232,6 +235,7 @@ impl DriveConfig {
         // Built first: a fallible call late in the literal below makes the compiler keep
         // every field before it in temporaries (kilobytes of stack on ARMv6-M).
         let deadtime = DeadTimeConfig::new(inverter, &base, design.deadtime)?;
+        let v_dead_nominal_v = design.deadtime.v_dead_v(inverter);
         features::check(&design)?;
         #[cfg(feature = "injection")]
         let (injection, injection_figures, injection_declined) = match design.injection.map(|d| {
@@ -274,9 +278,7 @@ impl DriveConfig {
             #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             EstimatorKind::Nlo => EstimatorConfig::Nlo(NloConfig::new(motor, &base, g)?),
             #[cfg(any(not(feature = "select-estimators"), feature = "ao"))]
-            EstimatorKind::Ao => {
-                EstimatorConfig::Ao(AoConfig::new(motor, &base, g)?.lag_compensated(&base)?)
-            }
+            EstimatorKind::Ao => EstimatorConfig::Ao(AoConfig::lag_compensated(motor, &base, g)?),
             #[cfg(any(not(feature = "select-estimators"), feature = "mras-emf"))]
             EstimatorKind::MrasEmf => {
                 EstimatorConfig::MrasEmf(MrasEmfConfig::default_for(motor, &base, g)?)
@@ -321,7 +323,7 @@ impl DriveConfig {
         positive("protection.vdc_min_v", p.vdc_min_v)?;
         in_range("protection.vdc_max_v", p.vdc_max_v, p.vdc_min_v, 1e4)?;
         let (light_load, low_speed) =
-            d_axis_currents(&design, &base, motor.flux_wb, deadtime.v_dead_nominal_v)?;
+            d_axis_currents(&design, &base, motor.flux_wb, v_dead_nominal_v)?;
         let svpwm = svpwm_config(inverter, &design)?;
         let align_samples = libm::round(ol.align_time_s / ts) as u32;
         let open_loop_current = pu_from_f64(ol.current_a / base.current_a);
@@ -380,7 +382,7 @@ impl DriveConfig {
             // (`features::check` refused it in a build without it.)
             #[cfg(feature = "ipd")]
             StartupMode::Ipd => IpdConfig::new(motor, &base, design.ipd)?,
-            _ => IpdConfig::unused(design.ipd),
+            _ => IpdConfig::unused(),
         };
         let speed = SpeedConfig::new(motor, &base, design.speed)?;
         #[cfg(feature = "injection")]
@@ -479,6 +481,7 @@ impl DriveConfig {
             base,
             design,
             motor: *motor,
+            v_dead_nominal_v,
             estimator,
             current,
             ipd,
@@ -505,6 +508,12 @@ impl DriveConfig {
     /// The dead-time compensation, as designed for the inverter the drive was told.
     pub fn deadtime(&self) -> &DeadTimeConfig {
         &self.task.deadtime
+    }
+
+    /// The inverter's distortion voltage `V_dead` at the nominal bus, V, as the compensation
+    /// was designed for it (whether or not the compensation is on).
+    pub fn v_dead_nominal_v(&self) -> f64 {
+        self.v_dead_nominal_v
     }
 
     /// Whether dead-time compensation is on.

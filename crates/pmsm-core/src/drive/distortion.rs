@@ -109,7 +109,6 @@ impl DistortionDesign {
     /// or more from the drive's own.
     pub fn for_drive(config: &DriveConfig) -> Self {
         let batch_s = 0.2;
-        let dt = config.deadtime();
         Self {
             interval_samples: super::TASK_PERIOD,
             batch_s,
@@ -123,11 +122,11 @@ impl DistortionDesign {
             write_threshold: 0.03,
             dead_band: 0.15,
             v_dead_v: if config.deadtime_compensation() {
-                dt.v_dead_nominal_v
+                config.v_dead_nominal_v()
             } else {
                 0.0
             },
-            band_a: dt.design.band_a,
+            band_a: config.design.deadtime.band_a,
         }
     }
 }

@@ -523,3 +523,20 @@ pub(crate) fn mid_frame(now: SinCos, next: SinCos, k: i32) -> SinCos {
         cos: at(now.cos, next.cos),
     }
 }
+
+// What the interrupt side keeps of the configuration (its own, its controllers' and
+// detector's, each estimator's) holds no floating-point value: the design figures stay with
+// the task and the `DriveConfig`.
+const _: () = {
+    use crate::control::current::CurrentConfig;
+    use crate::image::Words;
+    use crate::ipd::IpdConfig;
+    use crate::observer::{AoConfig, MrasCurrentConfig, MrasEmf, NloConfig};
+    assert!(<IsrConfig as Words>::FLOATS == 0);
+    assert!(<CurrentConfig as Words>::FLOATS == 0);
+    assert!(<IpdConfig as Words>::FLOATS == 0);
+    assert!(<NloConfig as Words>::FLOATS == 0);
+    assert!(<AoConfig as Words>::FLOATS == 0);
+    assert!(MrasEmf::LAW_FLOATS == 0);
+    assert!(<MrasCurrentConfig as Words>::FLOATS == 0);
+};

@@ -228,3 +228,43 @@ fn narrow_integers_and_flags_read_only_their_values() {
     let _ = bool::get(&mut r);
     assert!(!r.done());
 }
+
+/// `FLOATS` counts the floating-point values where they are (what the interrupt side keeps is
+/// checked at compile time to have none): the dead-time design's five figures, an array's,
+/// an option's, an enum's over its variants, and the many of a drive's whole configuration.
+#[test]
+fn floats_are_counted_where_they_are() {
+    assert_eq!(<crate::deadtime::DeadTimeDesign as Words>::FLOATS, 5);
+    assert_eq!(<[f64; 3] as Words>::FLOATS, 3);
+    assert_eq!(<Option<(f32, u32)> as Words>::FLOATS, 1);
+    assert_eq!(<crate::drive::StartupMode as Words>::FLOATS, 0);
+    // The MRAS on the EMF's constants, in its variant of the estimator's configuration.
+    if cfg!(any(
+        not(feature = "select-estimators"),
+        feature = "mras-emf"
+    )) {
+        assert_eq!(<crate::observer::EstimatorConfig as Words>::FLOATS, 3);
+    }
+    assert_eq!(<Pu as Words>::FLOATS, 0);
+    // A struct's count is its fields': the drive's whole configuration, whose interrupt-side
+    // parts (the current loops', the detection's, the interrupt's own) count none.
+    fn floats<T: Words>(_: &T) -> usize {
+        T::FLOATS
+    }
+    let inv = inverter_b();
+    let c =
+        DriveConfig::from_params(&motor_b(), &inv, inv.pwm_hz, DriveOptions::default()).unwrap();
+    #[allow(unused_mut)]
+    let mut parts = <crate::units::PerUnit as Words>::FLOATS
+        + <crate::drive::DriveDesign as Words>::FLOATS
+        + <MotorParams as Words>::FLOATS
+        + <f64 as Words>::FLOATS // the dead-time voltage at the nominal bus
+        + <crate::observer::EstimatorConfig as Words>::FLOATS
+        + <crate::control::speed::SpeedConfig as Words>::FLOATS
+        + floats(&c.task);
+    #[cfg(feature = "injection")]
+    {
+        parts += <Option<crate::observer::InjectionFigures> as Words>::FLOATS;
+    }
+    assert_eq!(<DriveConfig as Words>::FLOATS, parts);
+}

@@ -150,8 +150,6 @@ pub struct IpdConfig {
     /// Turn the saliency angle by π/2 (`L_d > L_q`).
     inverse_saliency: bool,
     svpwm: SvpwmConfig,
-    /// The design.
-    pub design: IpdDesign,
 }
 
 fn samples(key: &'static str, t_s: f64, ts: f64) -> Result<u32, ConfigError> {
@@ -238,15 +236,14 @@ impl IpdConfig {
             polarity_k: gain("ipd.min_polarity", design.min_polarity)?,
             inverse_saliency: motor.ld_h > motor.lq_h,
             svpwm: SvpwmConfig::default(),
-            design,
         })
     }
 
-    /// The configuration of a drive that does not start by IPD: nothing of `design` is checked
-    /// (its pulses need not be reachable on this motor and bus). Should a detection run on it
+    /// The configuration of a drive that does not start by IPD: no design is checked (its
+    /// pulses need not be reachable on this motor and bus). Should a detection run on it
     /// anyway, its zero current limit stops it at the first sample with
     /// [`IpdFault::OverCurrent`] or, with no current at all, [`IpdFault::NoCurrent`].
-    pub(crate) fn unused(design: IpdDesign) -> Self {
+    pub(crate) fn unused() -> Self {
         Self {
             n_short: 2,
             n_long: 2,
@@ -258,7 +255,6 @@ impl IpdConfig {
             polarity_k: Gain::ZERO,
             inverse_saliency: false,
             svpwm: SvpwmConfig::default(),
-            design,
         }
     }
 

@@ -45,8 +45,6 @@ pub struct AoConfig {
     meter: EmfMeterConfig,
     kappa: Gain,
     rotor: EmfToRotor,
-    /// Observer gain `g`, rad/s.
-    pub gain_rad_s: f64,
     /// The steady lag's compensation (module docs; [`LagCompensation::OFF`]: the paper's AO).
     lag: LagCompensation,
 }
@@ -61,16 +59,19 @@ impl AoConfig {
             meter: EmfMeterConfig::new(motor, base, motor.lq_h)?,
             kappa,
             rotor: EmfToRotor::new(motor, base)?,
-            gain_rad_s,
             lag: LagCompensation::OFF,
         })
     }
 
-    /// The same AO with its steady lag compensated (module docs, "lag compensation").
-    pub fn lag_compensated(self, base: &PerUnit) -> Result<Self, ConfigError> {
+    /// [`AoConfig::new`] with its steady lag compensated (module docs, "lag compensation").
+    pub fn lag_compensated(
+        motor: &MotorParams,
+        base: &PerUnit,
+        gain_rad_s: f64,
+    ) -> Result<Self, ConfigError> {
         Ok(Self {
-            lag: LagCompensation::new(base, self.gain_rad_s)?,
-            ..self
+            lag: LagCompensation::new(base, gain_rad_s)?,
+            ..Self::new(motor, base, gain_rad_s)?
         })
     }
 

@@ -141,7 +141,7 @@ impl MrasEmfConfig {
             [c1 / c2 * c2_motor, c2_motor, c3],
         )?
         .normalised_integral(base)?;
-        c.ao = c.ao.lag_compensated(base)?;
+        c.ao = AoConfig::lag_compensated(motor, base, ao_gain_rad_s)?;
         Ok(c)
     }
 
@@ -241,6 +241,10 @@ pub struct MrasEmf {
 }
 
 impl MrasEmf {
+    /// The floating-point values of the law it keeps (none: the constants stay in the
+    /// configuration).
+    pub(crate) const LAW_FLOATS: usize = <Law as crate::image::Words>::FLOATS;
+
     /// A new estimator at rest.
     pub fn new(config: MrasEmfConfig) -> Self {
         Self {

@@ -81,8 +81,6 @@ pub struct NloConfig {
     friction: Gain,
     /// `k_L = κ²/(64a)`: the load estimate's step per unit of innovation along `û`.
     load_gain: Gain,
-    /// Observer gain `g`, rad/s.
-    pub gain_rad_s: f64,
 }
 
 impl NloConfig {
@@ -106,7 +104,6 @@ impl NloConfig {
             half_step: gain("sample_hz", half_step)?,
             accel: gain("j_kg_m2", accel)?,
             friction: gain("b_nm_s", ts * motor.b_nm_s / motor.j_kg_m2)?,
-            gain_rad_s,
         })
     }
 }

@@ -111,7 +111,6 @@ impl TrackerDesign {
     /// saturates the d axis, which the model does not know, and motor B's start with ψ 20 %
     /// high in the model taught the filter an `R̂` 22 % high there and lost its lock.
     pub fn for_drive(config: &DriveConfig) -> Self {
-        let dt = config.deadtime();
         let default = Self::default_for(&config.base);
         let low_speed = if config.design.low_speed_id_a > 0.0 {
             config.design.low_speed_fade_rad_s
@@ -119,8 +118,10 @@ impl TrackerDesign {
             0.0
         };
         Self {
-            inverter_error_v: dt.v_dead_nominal_v,
-            current_band_a: config.deadtime_compensation().then_some(dt.design.band_a),
+            inverter_error_v: config.v_dead_nominal_v(),
+            current_band_a: config
+                .deadtime_compensation()
+                .then_some(config.design.deadtime.band_a),
             min_speed_rad_s: default.min_speed_rad_s.max(low_speed),
             ..default
         }
