@@ -688,9 +688,17 @@ fn default_gains_follow_the_formulas() {
     let cc = CurrentConfig::new(&m, &base, CurrentDesign::default_for(&base)).unwrap();
     let wc = 0.1 * FS_HZ;
     let expect = [wc * m.ld_h, wc * m.rs_ohm, wc * m.lq_h, wc * m.rs_ohm];
-    // As stored in fixed point: each within 1e−6 of the formula.
-    for (g, e) in cc.gains_si(&base).iter().zip(expect) {
-        assert!((g / e - 1.0).abs() < 1e-6, "{g} against {e}");
+    // As stored in fixed point: each within half its LSB of the formula (K_p to 2⁻¹⁷ Z_b,
+    // K_i T_s to 2⁻³² Z_b).
+    let z_b = base.impedance_ohm;
+    let lsb = [
+        z_b / 131072.0,
+        z_b / 4294967296.0 / base.sample_s,
+        z_b / 131072.0,
+        z_b / 4294967296.0 / base.sample_s,
+    ];
+    for ((g, e), lsb) in cc.gains_si(&base).iter().zip(expect).zip(lsb) {
+        assert!((g - e).abs() <= 0.5 * lsb, "{g} against {e}");
     }
     let sc = SpeedConfig::new(&m, &base, SpeedDesign::default_for(&base)).unwrap();
     let wn = 0.005 * FS_HZ;
