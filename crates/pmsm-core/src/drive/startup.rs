@@ -52,6 +52,15 @@
 //! through the open loop each time, the drive handed over every few milliseconds, each
 //! handover resetting the checks, and never tripped.
 //!
+//! The turn carries the speed loop's `i_q` alone, not what the frame's own deceleration
+//! takes besides. That sum is the rotor's balance only where the rotor held its speed before
+//! the reversal; a rotor still decelerating (the MRAS on the EMF, whose higher handover speed
+//! it enters from) already carries it in `i_q`, and counting it twice lost more reversals
+//! than it saved. The estimated speed's change over a task period, which would tell the two
+//! apart, is dominated by the estimate's noise near the handover speed. So a load near the
+//! open loop's torque, whose swing about the balance is undamped, can still turn the rotor
+//! out of the frame: then the lost lock above names it.
+//!
 //! # Alignment
 //!
 //! The d current first along a quarter turn ahead of `θ = 0`, ramped up over the first eighth
