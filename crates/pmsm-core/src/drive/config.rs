@@ -2,7 +2,9 @@
 //! side's part ([`IsrConfig`], fixed point only) and the task's ([`TaskConfig`]).
 
 use super::TASK_PERIOD;
-use super::design::{DriveDesign, DriveOptions, MAX_PWM_DELAY_SAMPLES, StartupMode};
+use super::design::{
+    DriveDesign, DriveOptions, MAX_PWM_DELAY_SAMPLES, StartupMode, overspeed_pu, voltage_limit_pu,
+};
 use crate::Angle;
 use crate::control::current::CurrentConfig;
 use crate::control::flux::FluxConfig;
@@ -108,6 +110,9 @@ pub(crate) struct TaskConfig {
     pub monitor: super::monitor::MonitorConfig,
     /// The open loop's current and handover speed, per unit.
     pub open_loop_current: Pu,
+    /// The open loop's damping: the frame's lead per unit of its speed over the estimated
+    /// one, angle LSB per 2¹⁶ [`Pu`] LSB (`startup`, "Damping").
+    pub open_loop_damping: i32,
     pub handover_speed: Pu,
     /// Task periods the handover may wait for an estimate that does not agree yet.
     pub handover_wait: u32,
@@ -452,6 +457,7 @@ impl DriveConfig {
             },
             monitor,
             open_loop_current: open_loop.current,
+            open_loop_damping: super::startup::damping(motor, &base, ol.current_a),
             handover_speed: open_loop.handover_speed,
             handover_wait: libm::ceil(
                 (ol.handover_speed_rad_s / ol.accel_rad_s2).clamp(0.01, 0.05) / tt,
@@ -561,38 +567,4 @@ fn svpwm_config(
         }
         .into())
     }
-}
-
-/// The fundamental voltage the drive can hold at the nominal bus, per unit of `V_b` (the
-/// circle's radius): 1, or the six-step's `2√3/π` overmodulating.
-fn voltage_limit_pu(design: &DriveDesign) -> f64 {
-    if design.overmodulation {
-        crate::control::flux::SIX_STEP_PER_CIRCLE
-    } else {
-        1.0
-    }
-}
-
-/// Times the highest controllable speed at which the drive trips on overspeed.
-pub const OVERSPEED_FACTOR: f64 = 1.15;
-
-/// The overspeed threshold, per unit: [`OVERSPEED_FACTOR`] times the highest speed at which
-/// the drive can still hold the no-load voltage within the circle at the nominal bus, i.e.
-/// with `i_d = −I_d,lim` (`weakening_current_f64`) under field weakening, `i_d = 0` without
-/// (where the EMF `ωψ` reaches `V_DC/√3`, the bus the diodes would rectify into). Never below
-/// 1.2 pu.
-fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f64 {
-    let i_max = design.speed.current_limit_a / base.current_a;
-    let ld = motor.ld_h / base.inductance_h;
-    let psi = motor.flux_wb / base.flux_wb;
-    let r = motor.rs_ohm / base.impedance_ohm;
-    let v_lim = voltage_limit_pu(design);
-    let id_lim = if design.flux.field_weakening {
-        crate::control::flux::weakening_current_f64(psi, ld, r, i_max, v_lim)
-    } else {
-        0.0
-    };
-    let cap = crate::control::flux::SPEED_CAP_PER_BASE;
-    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, v_lim, cap);
-    (OVERSPEED_FACTOR * w).max(1.2).min(cap)
 }

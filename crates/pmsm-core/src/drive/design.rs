@@ -505,5 +505,39 @@ pub struct DriveOptions {
     pub pwm_delay_samples: Option<u8>,
 }
 
+/// The fundamental voltage the drive can hold at the nominal bus, per unit of `V_b` (the
+/// circle's radius): 1, or the six-step's `2√3/π` overmodulating.
+pub(crate) fn voltage_limit_pu(design: &DriveDesign) -> f64 {
+    if design.overmodulation {
+        crate::control::flux::SIX_STEP_PER_CIRCLE
+    } else {
+        1.0
+    }
+}
+
+/// Times the highest controllable speed at which the drive trips on overspeed.
+pub const OVERSPEED_FACTOR: f64 = 1.15;
+
+/// The overspeed threshold, per unit: [`OVERSPEED_FACTOR`] times the highest speed at which
+/// the drive can still hold the no-load voltage within the circle at the nominal bus, i.e.
+/// with `i_d = −I_d,lim` (`weakening_current_f64`) under field weakening, `i_d = 0` without
+/// (where the EMF `ωψ` reaches `V_DC/√3`, the bus the diodes would rectify into). Never below
+/// 1.2 pu.
+pub(crate) fn overspeed_pu(motor: &MotorParams, base: &PerUnit, design: &DriveDesign) -> f64 {
+    let i_max = design.speed.current_limit_a / base.current_a;
+    let ld = motor.ld_h / base.inductance_h;
+    let psi = motor.flux_wb / base.flux_wb;
+    let r = motor.rs_ohm / base.impedance_ohm;
+    let v_lim = voltage_limit_pu(design);
+    let id_lim = if design.flux.field_weakening {
+        crate::control::flux::weakening_current_f64(psi, ld, r, i_max, v_lim)
+    } else {
+        0.0
+    };
+    let cap = crate::control::flux::SPEED_CAP_PER_BASE;
+    let w = crate::control::flux::max_speed_f64(psi, ld, r, id_lim, v_lim, cap);
+    (OVERSPEED_FACTOR * w).max(1.2).min(cap)
+}
+
 #[cfg(test)]
 mod tests;

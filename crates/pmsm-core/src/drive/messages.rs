@@ -120,6 +120,8 @@ pub(crate) struct Command {
     /// The estimator's health figure as the task filters it (for the interrupt side's
     /// telemetry).
     pub health: Pu,
+    /// The open loop's frame ahead of its ramp by this (its damping, `startup`).
+    pub frame_shift: Angle,
 }
 
 /// What the interrupt side did over one task period: its status, the last sample, and means.
@@ -366,7 +368,7 @@ impl Mode {
 /// Words of a [`Status`] or a [`Mode`]: a tag and four.
 const TAGGED_WORDS: usize = 5;
 
-pub(crate) const COMMAND_WORDS: usize = 2 + TAGGED_WORDS + 2 + 2 + 2;
+pub(crate) const COMMAND_WORDS: usize = 2 + TAGGED_WORDS + 2 + 2 + 3;
 
 impl Message<COMMAND_WORDS> for Command {
     fn pack(&self, slot: &[AtomicU32; COMMAND_WORDS]) {
@@ -380,6 +382,7 @@ impl Message<COMMAND_WORDS> for Command {
         w.bool(self.hold);
         w.u32(self.model);
         write_pu(w, self.health);
+        w.i32(self.frame_shift.0);
     }
 
     fn unpack(slot: &[AtomicU32; COMMAND_WORDS]) -> Self {
@@ -399,6 +402,7 @@ impl Message<COMMAND_WORDS> for Command {
             hold: r.bool(),
             model: r.u32(),
             health: read_pu(r),
+            frame_shift: Angle(r.i32()),
         }
     }
 }

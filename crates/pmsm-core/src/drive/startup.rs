@@ -57,9 +57,24 @@
 //! the reversal; a rotor still decelerating (the MRAS on the EMF, whose higher handover speed
 //! it enters from) already carries it in `i_q`, and counting it twice lost more reversals
 //! than it saved. The estimated speed's change over a task period, which would tell the two
-//! apart, is dominated by the estimate's noise near the handover speed. So a load near the
-//! open loop's torque, whose swing about the balance is undamped, can still turn the rotor
-//! out of the frame: then the lost lock above names it.
+//! apart, is dominated by the estimate's noise near the handover speed. The swing the step in
+//! torque starts is the damping's to take out (below).
+//!
+//! # Damping
+//!
+//! Nothing in the open loop damps the rotor's swing about its lag: the torque
+//! `K_T I sin δ` is a spring in the lag `δ` of natural frequency `ω_n = √(p K_T I/J)`
+//! (electrical), and a load step, the change from the closed loop's torque to the one the
+//! frame's acceleration takes, or a load that changes sign through a reversal sets it
+//! swinging; past a quarter turn the rotor slips out of the frame. So while the estimate
+//! sees the rotor (its speed and the frame's both beyond half the handover speed, the same
+//! way) the task leads the frame by `k_d (ω_f − ω̂)`, at most an eighth of a turn, with
+//! `k_d = 2ζ/ω_n` and `ζ = ½` ([`damping`], [`frame_shift`]): a rotor falling behind the
+//! frame gets more torque, one running ahead less, and about its lag the swing is that of
+//! `δ̈ + k_d ω_n² δ̇ + ω_n² δ = 0`, damped by half. Below half the handover speed the frame
+//! runs as ramped: there the estimate knows nothing, and the swing a load excites there is
+//! what the damping took out before. Sent with each command, the lead is a step at the task's
+//! rate: `ω_n` is far below it.
 //!
 //! # Alignment
 //!
@@ -100,6 +115,8 @@ use crate::angle::Angle;
 use crate::frames::{AlphaBeta, Dq};
 use crate::num::{Pu, mul_unit};
 use crate::observer::Estimate;
+use crate::params::MotorParams;
+use crate::units::PerUnit;
 
 /// The alignment's first frame, a quarter turn ahead of the second (`θ = 0`): a rotor half a
 /// turn from `θ = 0`, where a current along α has no torque, is pulled from there first.
@@ -124,6 +141,8 @@ pub(crate) struct OpenLoop {
     reversal: bool,
     /// The alignment's current ramp, [`Pu`] bits with 16 more fractional bits.
     ramp: i64,
+    /// The frame's lead over its ramp, the task's damping (module docs, "Damping").
+    pub shift: Angle,
 }
 
 impl OpenLoop {
@@ -201,6 +220,7 @@ impl OpenLoop {
             reversal_lag: None,
             reversal: false,
             ramp: 0,
+            shift: Angle::ZERO,
         }
     }
 
@@ -218,6 +238,7 @@ impl OpenLoop {
             reversal_lag: Some(turn),
             reversal: true,
             ramp: 0,
+            shift: Angle::ZERO,
         }
     }
 
@@ -256,7 +277,7 @@ impl OpenLoop {
                 } else {
                     self.omega.max(lsb)
                 };
-                Some((self.theta - lag, omega))
+                Some((self.theta + self.shift - lag, omega))
             }
             _ => None,
         }
@@ -276,7 +297,7 @@ impl OpenLoop {
         self.omega = self.omega.saturating_add(step);
         self.theta = self.theta + Angle(ol.turn_per_speed.apply_bits(self.omega.to_bits()));
         (
-            self.theta,
+            self.theta + self.shift,
             self.omega,
             Dq {
                 d: ol.current,
@@ -294,6 +315,36 @@ impl OpenLoop {
             self.omega >= h
         }
     }
+}
+
+/// The open loop's damping (module docs, "Damping"): `k_d = 2ζ/ω_n` with `ζ = ½` and
+/// `ω_n = √(p K_T I/J)`, the rotor's swing about its lag at the open loop's current `I`
+/// (electrical, rad/s), as the frame's lead per unit of speed, angle LSB per 2¹⁶ [`Pu`] LSB
+/// (`k_d ω_b 2²⁴/(2π)`, saturated).
+pub(crate) fn damping(motor: &MotorParams, base: &PerUnit, current_a: f64) -> i32 {
+    let w_n = libm::sqrt(motor.p() * motor.kt_nm_per_a * current_a / motor.j_kg_m2);
+    let k_d = 1.0 / w_n;
+    let d = k_d * base.omega_e_rad_s * (1u64 << 24) as f64 / core::f64::consts::TAU;
+    if d.is_finite() {
+        d.clamp(0.0, f64::from(i32::MAX)) as i32
+    } else {
+        0
+    }
+}
+
+/// The frame's lead for a task period of the open loop whose frame turned at `omega_frame`
+/// and the estimate at `omega_est` (module docs, "Damping"): `k_d (ω_f − ω̂)`, within an
+/// eighth of a turn, while the estimate sees the rotor (both beyond half the handover speed
+/// `handover`, the same way); zero otherwise.
+pub(crate) fn frame_shift(omega_frame: Pu, omega_est: Pu, handover: Pu, damping: i32) -> Angle {
+    let (f, e) = (omega_frame.to_bits(), omega_est.to_bits());
+    let half = (handover.to_bits() >> 1).unsigned_abs();
+    if (f ^ e) < 0 || f.unsigned_abs() < half || e.unsigned_abs() < half {
+        return Angle::ZERO;
+    }
+    // The same sign: the difference cannot wrap.
+    let lead = (i64::from(f - e) * i64::from(damping)) >> 16;
+    Angle(lead.clamp(-(1 << 29), 1 << 29) as i32)
 }
 
 /// The imposed frame at the handover, as the task sees it in the interrupt's window.
@@ -343,10 +394,12 @@ pub(crate) fn handover(f: &HandoverFrame, est: &Estimate, current: Pu) -> Result
 mod tests {
     use super::*;
     use crate::drive::DriveDesign;
+    use crate::drive::TASK_PERIOD;
     use crate::fixtures::{inverter_b, motor_b};
     use crate::num::pu_from_f64;
     use crate::observer::EstimatorKind;
     use crate::units::PerUnit;
+    use core::f64::consts::{PI, TAU};
 
     /// The alignment ends at the angle of the last sample's current `(I, i_β)`, against the
     /// `f64` `atan2` within 10⁻⁵ rad (`polar`'s rounding), for β currents up to ±I; the
@@ -400,5 +453,76 @@ mod tests {
                 "i_β/I {ratio}: {got} against {want}"
             );
         }
+    }
+
+    /// Motor B's bases, the open loop's damping at its rated current, `ω_n` and a handover
+    /// speed of 0.1 pu.
+    fn damping_b() -> (PerUnit, i32, f64, Pu) {
+        let (m, inv) = (motor_b(), inverter_b());
+        let base = PerUnit::new(&m, &inv, 14e3).unwrap();
+        let d = damping(&m, &base, base.current_a);
+        let w_n = libm::sqrt(m.p() * m.kt_nm_per_a * base.current_a / m.j_kg_m2);
+        (base, d, w_n, pu_from_f64(0.1))
+    }
+
+    /// The lead is `k_d (ω_f − ω̂)` with `k_d = 1/ω_n`, within 10⁻⁶ rad of the `f64` product
+    /// over speeds beyond half the handover speed, an eighth of a turn at most; zero below
+    /// half the handover speed or with the estimate turning the other way.
+    #[test]
+    fn the_frame_leads_by_the_speed_it_gains_on_the_estimate() {
+        let (base, d, w_n, h) = damping_b();
+        let mut worst = 0.0f64;
+        for k in -40..=40 {
+            let (f, e) = (
+                0.06 + 0.01 * f64::from(k.max(0)),
+                0.06 + 0.0005 * f64::from(k + 40),
+            );
+            for sign in [1.0, -1.0] {
+                let lead = frame_shift(pu_from_f64(sign * f), pu_from_f64(sign * e), h, d);
+                let want = (sign * (f - e) * base.omega_e_rad_s / w_n).clamp(-0.25 * PI, 0.25 * PI);
+                worst = worst.max((lead.to_rad() - want).abs());
+            }
+        }
+        assert!(worst < 1e-6, "{worst}");
+        let at = |f: f64, e: f64| frame_shift(pu_from_f64(f), pu_from_f64(e), h, d);
+        assert_eq!(at(0.04, 0.2), Angle::ZERO);
+        assert_eq!(at(0.2, 0.04), Angle::ZERO);
+        assert_eq!(at(0.2, -0.2), Angle::ZERO);
+        assert_eq!(at(-0.06, 3.0), Angle::ZERO);
+        assert_eq!(at(3.0, 0.06), Angle(1 << 29));
+        assert_eq!(at(-3.0, -0.06), Angle(-(1 << 29)));
+    }
+
+    /// The rotor released a sixth of a turn off its lag at the open loop's current, on motor B
+    /// with the frame at constant speed: undamped it swings back as far; with the lead the
+    /// task sends (taken every task period from the rotor's speed, as the estimate would give
+    /// it) its swing is down to a tenth within two periods of `ω_n`.
+    #[test]
+    fn the_lead_damps_the_rotors_swing_about_its_lag() {
+        let (base, d, w_n, h) = damping_b();
+        let w_f = 0.3 * base.omega_e_rad_s;
+        let swing = |damped: bool| {
+            // δ: the rotor's angle behind the ramp, electrical; the frame leads the ramp by the
+            // shift; the torque's spring acts on the frame's lead over the rotor.
+            let (mut delta, mut w_r) = (PI / 3.0, w_f);
+            let (ts, mut shift, mut late) = (base.sample_s, 0.0, 0.0f64);
+            let samples = (2.0 * TAU / w_n / ts) as usize;
+            for k in 0..2 * samples {
+                if damped && k % TASK_PERIOD as usize == 0 {
+                    let (f, e) = (w_f / base.omega_e_rad_s, w_r / base.omega_e_rad_s);
+                    shift = frame_shift(pu_from_f64(f), pu_from_f64(e), h, d).to_rad();
+                }
+                let accel = w_n * w_n * libm::sin(delta + shift);
+                w_r += accel * ts;
+                delta += (w_f - w_r) * ts;
+                if k >= samples {
+                    late = late.max(delta.abs());
+                }
+            }
+            late
+        };
+        let (free, damped) = (swing(false), swing(true));
+        assert!(free > 0.9 * PI / 3.0, "undamped {free}");
+        assert!(damped < 0.1 * PI / 3.0, "damped {damped}");
     }
 }

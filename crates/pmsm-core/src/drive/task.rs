@@ -34,10 +34,12 @@ use super::handoff::Handoff;
 use super::interface::{DriveState, Fault, SpeedRefLimit};
 use super::messages::{Command, Mode, ModelUpdate, Status, Window};
 use super::monitor::{Monitor, Signals};
+use super::startup::frame_shift;
 use super::tracking::ModelCoefficients;
 #[cfg(feature = "tracking")]
 use super::tracking::Tracker;
 use super::zero_crossing::ZeroCrossing;
+use crate::angle::Angle;
 use crate::control::flux::FluxController;
 use crate::control::light_load::LightLoad;
 use crate::control::speed::SpeedController;
@@ -88,6 +90,8 @@ pub struct DriveTask {
     speed_ref_run: Pu,
     /// The period's mean estimated speed through the speed filter: what the speed loop sees.
     speed_filtered: Pu,
+    /// The open loop's frame lead sent with the command (its damping).
+    frame_shift: Angle,
     /// The speed loop's current reference, and the reference sent.
     iq_ref: Pu,
     i_ref: Dq,
@@ -187,6 +191,7 @@ impl DriveTask {
             speed_ref: Pu::ZERO,
             speed_ref_run: Pu::ZERO,
             speed_filtered: Pu::ZERO,
+            frame_shift: Angle::ZERO,
             iq_ref: Pu::ZERO,
             i_ref: Dq::default(),
             measured_signs: false,
@@ -237,6 +242,7 @@ impl DriveTask {
             hold: self.hold,
             model: self.model_seq,
             health: self.monitor.health(),
+            frame_shift: self.frame_shift,
         });
     }
 
@@ -417,6 +423,17 @@ impl DriveTask {
         let current = w.epoch == self.epoch;
         let running = current && matches!(self.state, DriveState::Run);
         self.hold = false;
+        let c = &self.config;
+        self.frame_shift = if current && matches!(self.state, DriveState::OpenLoop) {
+            frame_shift(
+                w.omega_frame,
+                w.omega_mean,
+                c.handover_speed,
+                c.open_loop_damping,
+            )
+        } else {
+            Angle::ZERO
+        };
         match (self.state, w.status) {
             (DriveState::Ipd, Status::IpdDone(theta)) if current => self.detected(theta),
             // An automatic start whose detection saw the axis but not the polarity (a salient

@@ -170,6 +170,7 @@ impl DriveIsr {
             }
         }
         self.i_ref = command.i_ref;
+        self.open_loop.shift = command.frame_shift;
         self.measured_signs = command.measured_signs;
         self.telemetry.health = command.health;
         if command.hold {

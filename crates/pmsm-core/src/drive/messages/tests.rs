@@ -160,6 +160,7 @@ fn every_message_reads_back_what_was_written() {
             hold: k % 3 == 1,
             model: 7,
             health: Pu::from_bits(-8),
+            frame_shift: Angle(-9),
         });
     }
 }
