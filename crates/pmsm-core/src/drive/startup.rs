@@ -324,7 +324,8 @@ impl OpenLoop {
 pub(crate) fn damping(motor: &MotorParams, base: &PerUnit, current_a: f64) -> i32 {
     let w_n = libm::sqrt(motor.p() * motor.kt_nm_per_a * current_a / motor.j_kg_m2);
     let k_d = 1.0 / w_n;
-    let d = k_d * base.omega_e_rad_s * (1u64 << 24) as f64 / core::f64::consts::TAU;
+    // Angle LSB per 2¹⁶ Pu LSB (2⁻⁸ per unit of speed).
+    let d = k_d * base.omega_e_rad_s / (Angle::RAD_PER_LSB * 256.0);
     if d.is_finite() {
         d.clamp(0.0, f64::from(i32::MAX)) as i32
     } else {
