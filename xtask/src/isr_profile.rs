@@ -11,9 +11,13 @@
 //! chain of functions inlined at it (`addr2line -i`), to the outermost of them that names a
 //! part of the step; an instruction of an out-of-line helper that names none (the Cortex-M0's
 //! wide products) goes to the part of its call site, which the trace follows (a jump to a
-//! function's first address is a call, a landing after a call site its return). The sum over the parts is the step without the meter's overhead, so a
-//! little below `scripts/pil.sh`'s mean. The steps that end a task period (they run
-//! `DriveIsr::end_period`) are also counted apart from the others.
+//! function's first address is a call, a landing after a call site its return). The sum over
+//! the parts is the step without the meter's overhead, so a little below `scripts/pil.sh`'s
+//! mean. The steps that end a task period (they run `DriveIsr::end_period`) are also counted
+//! apart from the others, and the most costly call that enters no mode (runs no
+//! `DriveIsr::enter`: the benchmark counts the steps in `Run`, and the step that enters it is
+//! not one) is attributed part by part beside the mean: the anatomy of the worst case the bars
+//! are on.
 
 use anyhow::{Context, Result, bail};
 use std::collections::{BTreeMap, HashMap};
@@ -76,7 +80,7 @@ pub fn main(args: &[String]) -> Result<()> {
             println!("{cpu}: the lines of each part, instructions per call");
             let mut v: Vec<_> = p.lines.iter().collect();
             v.sort_by(|a, b| b.1.total_cmp(a.1));
-            for ((part, at), n) in v.iter().take(40) {
+            for ((part, at), n) in v.iter().take(60) {
                 println!("{:7.1}  {part}: {at}", *n / p.calls as f64);
             }
         }
@@ -112,25 +116,46 @@ fn section() -> Result<(String, Vec<(&'static str, Profile)>)> {
          `DriveIsr::step` in the closed loop, by part, each instruction counted in the outermost \
          function inlined at it that names a part (in an out-of-line helper that names none, a \
          wide product on the Cortex-M0, its caller's). Without the meter's overhead, so a little \
-         below the benchmark's mean. `--lines` lists the source lines that cost most.\n\n| part | {} | {} |\n|---|--:|--:|\n",
+         below the benchmark's mean; beside it, the most costly call followed that enters no mode \
+         (the benchmark's worst case). `--lines` lists \
+         the source lines that cost most.\n\n| part | {0}, mean | {0}, worst step | {1}, mean | \
+         {1}, worst step |\n|---|--:|--:|--:|--:|\n",
         columns[0].0, columns[1].0
     );
     let names = PARTS.iter().map(|p| p.0).chain([REST]);
     for name in names {
         let cell = |c: &Profile| c.parts.get(name).map_or(0.0, |n| n / c.calls as f64);
+        let worst = |c: &Profile| c.worst.get(name).copied().unwrap_or(0.0);
         s += &format!(
-            "| {name} | {:.0} | {:.0} |\n",
+            "| {name} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
             cell(&columns[0].1),
-            cell(&columns[1].1)
+            worst(&columns[0].1),
+            cell(&columns[1].1),
+            worst(&columns[1].1)
         );
     }
     let total = |c: &Profile| c.parts.values().sum::<f64>() / c.calls.max(1) as f64;
+    let worst = |c: &Profile| c.worst.values().sum::<f64>();
+    let ends = |c: &Profile| {
+        if c.worst_ends {
+            "ends a period"
+        } else {
+            "does not end a period"
+        }
+    };
     s += &format!(
-        "| **total** | **{:.0}** | **{:.0}** |\n\nCalls followed: {} and {}.\n\n",
+        "| **total** | **{:.0}** | **{:.0}** | **{:.0}** | **{:.0}** |\n\nCalls followed: {} and \
+         {}. The worst step {} on the {}, {} on the {}.\n\n",
         total(&columns[0].1),
+        worst(&columns[0].1),
         total(&columns[1].1),
+        worst(&columns[1].1),
         columns[0].1.calls,
-        columns[1].1.calls
+        columns[1].1.calls,
+        ends(&columns[0].1),
+        columns[0].0,
+        ends(&columns[1].1),
+        columns[1].0,
     );
     fn mean((n, k): (u64, u64)) -> f64 {
         n as f64 / k.max(1) as f64
@@ -208,6 +233,10 @@ struct Profile {
     period_end: (u64, u64),
     others: (u64, u64),
     parts: BTreeMap<&'static str, f64>,
+    /// The most costly call followed that enters no mode: its parts, and whether it ended a
+    /// task period.
+    worst: BTreeMap<&'static str, f64>,
+    worst_ends: bool,
     lines: BTreeMap<(&'static str, String), f64>,
 }
 
@@ -223,6 +252,9 @@ struct Symbols {
     /// where it is inlined (ARMv6-M), the step's addresses inlined from it): a step that runs
     /// one publishes the window.
     end_period: std::collections::HashSet<u32>,
+    /// The addresses of a mode change (`DriveIsr::enter`, inlined into the command's take):
+    /// a step that runs one enters a mode, which the benchmark's counted steps never do.
+    enter: std::collections::HashSet<u32>,
     /// The estimators' updates: a call that runs one is in the closed loop.
     updates: Vec<(u32, u32)>,
     /// Every function's first address: a jump there is a call.
@@ -239,6 +271,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
     let mut core = (u32::MAX, 0);
     let (mut meter, mut begin, mut end, mut step) = (None, None, None, None);
     let mut end_period = None;
+    let mut take = None;
     let mut updates = Vec::new();
     let mut entries = std::collections::HashSet::new();
     for line in text.lines() {
@@ -269,6 +302,9 @@ fn symbols(elf: &Path) -> Result<Symbols> {
         if name.contains("8DriveIsr4step") {
             step = Some((a, a + n));
         }
+        if name.contains("DriveIsr$GT$4take") {
+            take = Some((a, a + n));
+        }
         if name.contains("10end_period") {
             end_period = Some((a, a + n));
         }
@@ -290,6 +326,12 @@ fn symbols(elf: &Path) -> Result<Symbols> {
     if end_period.is_empty() {
         bail!("no code of DriveIsr::end_period in {}", elf.display());
     }
+    let take = take.context("no symbol for DriveIsr::take")?;
+    let enter: std::collections::HashSet<u32> = chains(elf, (take.0..take.1).step_by(2))?
+        .into_iter()
+        .filter(|(_, chain)| chain.iter().any(|f| f.name.contains("DriveIsr>::enter")))
+        .map(|(pc, _)| pc)
+        .collect();
     Ok(Symbols {
         core,
         meter: meter.context("no symbol for the meter's ticks")?,
@@ -297,6 +339,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
         end: need(end, "profile_end")?,
         step: step.0,
         end_period,
+        enter,
         updates,
         entries,
     })
@@ -340,11 +383,15 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
     let log = BufReader::with_capacity(1 << 20, child.stderr.take().context("QEMU's log")?);
     // Per address and the call site of the out-of-line function it is in (the innermost
     // call not yet returned from, if any), the instructions of the calls followed.
-    let mut counts: HashMap<(u32, Option<u32>), u64> = HashMap::new();
-    let mut call: HashMap<(u32, Option<u32>), u64> = HashMap::new();
+    let mut counts: Counts = HashMap::new();
+    let mut call: Counts = HashMap::new();
     let mut sites = Sites::default();
     let (mut window, mut inside, mut closed, mut ends) = (false, false, false, false);
+    let mut enters = false;
     let (mut calls, mut last) = (0u64, 0u32);
+    // The most costly call that enters no mode: its instructions, whether it ended a period,
+    // its addresses.
+    let mut worst: (u64, bool, Counts) = (0, false, HashMap::new());
     let (mut period_end, mut others) = ((0u64, 0u64), (0u64, 0u64));
     for line in log.split(b'\n') {
         let line = line?;
@@ -360,6 +407,7 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
             inside = true;
             closed = false;
             ends = false;
+            enters = false;
             call.clear();
             sites = Sites::default();
             last = pc;
@@ -374,6 +422,9 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
                 let n: u64 = call.values().sum();
                 let kind = if ends { &mut period_end } else { &mut others };
                 *kind = (kind.0 + n, kind.1 + 1);
+                if n > worst.0 && !enters {
+                    worst = (n, ends, call.clone());
+                }
                 for (a, n) in call.drain() {
                     *counts.entry(a).or_default() += n;
                 }
@@ -384,6 +435,7 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
         last = pc;
         closed |= sym.updates.iter().any(|(a, b)| (*a..*b).contains(&pc));
         ends |= sym.end_period.contains(&pc);
+        enters |= sym.enter.contains(&pc);
         *call.entry((pc, sites.innermost())).or_default() += 1;
     }
     let status = child.wait()?;
@@ -397,6 +449,7 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
         calls,
         period_end,
         others,
+        worst_ends: worst.1,
         ..Profile::default()
     };
     let mut pcs: Vec<u32> = counts.keys().map(|k| k.0).collect();
@@ -405,15 +458,20 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
     pcs.dedup();
     let chains: HashMap<u32, Vec<Frame>> = chains(elf, pcs.into_iter())?.into_iter().collect();
     let none = Vec::new();
+    // An out-of-line helper (a wide product, a reciprocal) names no part: its caller's.
+    let part_at = |pc: u32, site: Option<u32>| {
+        let part = part_of(chains.get(&pc).unwrap_or(&none));
+        match site {
+            Some(site) if part == REST => part_of(chains.get(&site).unwrap_or(&none)),
+            _ => part,
+        }
+    };
+    for ((pc, site), n) in &worst.2 {
+        *profile.worst.entry(part_at(*pc, *site)).or_default() += *n as f64;
+    }
     for ((pc, site), n) in counts {
         let chain = chains.get(&pc).unwrap_or(&none);
-        // An out-of-line helper (a wide product, a reciprocal) names no part: its caller's.
-        let mut part = part_of(chain);
-        if part == REST
-            && let Some(site) = site
-        {
-            part = part_of(chains.get(&site).unwrap_or(&none));
-        }
+        let part = part_at(pc, site);
         let n = n as f64;
         *profile.parts.entry(part).or_default() += n;
         // The chain of calls below the step (or the out-of-line function), outermost first:
@@ -433,6 +491,9 @@ fn profile(elf: &Path, cpu: &str, machine: &str) -> Result<Profile> {
     }
     Ok(profile)
 }
+
+/// Instructions by executed address and the call site of the out-of-line function it is in.
+type Counts = HashMap<(u32, Option<u32>), u64>;
 
 /// The call sites not yet returned from, innermost last.
 #[derive(Default)]
