@@ -135,10 +135,11 @@ pub fn section() -> String {
             "With a bus reading that changes at every sample (`isr_bus_noise`: the default drive \
              on the same inputs, the reading moved by up to three steps of 1/2048 of itself at \
              each sample, as a 12-bit converter's does on a real board; reported, not held to a \
-             budget): the interrupt then takes the modulator's and the dead-time compensation's \
-             bus terms (the reciprocal's 32-bit division and four products, and four \
-             products more) at every step, Cortex-M4 {}, \
-             Cortex-M0 {}; mean {} and {}. The recorded runs read a constant bus.\n\n",
+             budget): the bus terms of the modulator, the current loops' circle and the \
+             dead-time compensation are kept while the reading stays within 0.2 % of the one \
+             they were computed from (`BusReciprocal`), so they are taken once, not at every \
+             step: Cortex-M4 {}, Cortex-M0 {}; mean {} and {}. The recorded runs read a \
+             constant bus.\n\n",
             v[1], v[3], v[0], v[2]
         ));
     }

@@ -93,7 +93,11 @@ use crate::num::{
 };
 use crate::params::in_range;
 
+mod bus;
 mod overmodulation;
+#[cfg(test)]
+pub(crate) use bus::BUS_TOLERANCE_SHIFT;
+pub(crate) use bus::BusReciprocal;
 #[cfg(any(test, feature = "overmodulation"))]
 use overmodulation::overmodulate;
 pub use overmodulation::overmodulate_f64;
@@ -222,65 +226,52 @@ impl SvpwmConfig {
 
     /// Duties for the stationary voltage `v` on the bus `vdc` (both per unit of `V_b`).
     /// Integer only; never panics. Takes the bus's reciprocal at every call (the drive keeps
-    /// it from one sample to the next while the bus reading does not change).
+    /// it from one sample to the next while the bus reading stays within 0.2 % of the one it
+    /// was taken for).
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
-        let mut cache = BusReciprocal::default();
+        if vdc <= self.vdc_min {
+            return SvpwmOutput::BUS_LOW;
+        }
+        let recip = Reciprocal::of(vdc.to_bits());
         #[cfg(any(test, feature = "overmodulation"))]
         if self.overmodulation {
-            return self.overmodulate_cached(v, vdc, &mut cache);
+            return self.overmodulate_on(v, vdc, recip);
         }
-        self.modulate_cached(v, vdc, &mut cache)
+        self.modulate_on(v, vdc, recip)
     }
 
     #[cfg(any(test, feature = "overmodulation"))]
-    /// The overmodulating modulator (`SvpwmConfig::overmodulating`) with the bus terms of
-    /// `cache` (as [`SvpwmConfig::modulate_cached`]): out of line, so the linear modulator's
+    /// The overmodulating modulator (`SvpwmConfig::overmodulating`) on the bus `vdc` and its
+    /// reciprocal (as [`SvpwmConfig::modulate_on`]): out of line, so the linear modulator's
     /// path keeps its registers and the drive pays one test for the choice.
     #[inline(never)]
-    pub(crate) fn overmodulate_cached(
-        &self,
-        v: AlphaBeta,
-        vdc: Pu,
-        cache: &mut BusReciprocal,
-    ) -> SvpwmOutput {
+    pub(crate) fn overmodulate_on(&self, v: AlphaBeta, vdc: Pu, recip: Reciprocal) -> SvpwmOutput {
         if vdc <= self.vdc_min {
-            return SvpwmOutput {
-                duties: Duties::HALF,
-                v: AlphaBeta::default(),
-                saturated: true,
-                bus_low: true,
-            };
+            return SvpwmOutput::BUS_LOW;
         }
-        overmodulate(v, vdc, cache.get(vdc, self), self.rail_q30)
+        overmodulate(v, vdc, recip, self.rail_q30)
     }
 
-    /// [`SvpwmConfig::modulate`] of the linear modulator, bit for bit, with `1/v_dc` and the circle's radius taken
-    /// from `cache` when the bus reading is the one they were computed for (a 32-bit division
-    /// and four products saved) and recomputed and stored otherwise.
-    pub(crate) fn modulate_cached(
-        &self,
-        v: AlphaBeta,
-        vdc: Pu,
-        cache: &mut BusReciprocal,
-    ) -> SvpwmOutput {
+    /// The linear modulator on the bus `vdc` and its reciprocal `recip` (the drive's kept
+    /// ones, [`BusReciprocal`]). Inlined but on ARMv6-M, where the inlined copy in the drive's
+    /// step cost 57 instructions a step in spilled registers (`scripts/pil.sh`).
+    #[cfg_attr(
+        not(all(target_arch = "arm", not(target_has_atomic = "32"))),
+        inline(always)
+    )]
+    pub(crate) fn modulate_on(&self, v: AlphaBeta, vdc: Pu, recip: Reciprocal) -> SvpwmOutput {
         if vdc <= self.vdc_min {
-            return SvpwmOutput {
-                duties: Duties::HALF,
-                v: AlphaBeta::default(),
-                saturated: true,
-                bus_low: true,
-            };
+            return SvpwmOutput::BUS_LOW;
         }
-        let bus = cache.get(vdc, self);
         let (a, b) = (v.alpha.to_bits(), v.beta.to_bits());
         // A component beyond the bus itself is beyond the fractions' exact range (and 1.5
         // times the hexagon's vertex): a request the drive never makes, taken apart.
         if a.unsigned_abs().max(b.unsigned_abs()) > vdc.to_bits() as u32 {
-            return self.beyond_the_bus(v, vdc, bus);
+            return self.beyond_the_bus(v, vdc, recip);
         }
         // To fractions of the bus first (two products), then the legs (one more):
         // d_x = ½ + u_x − (max + min)/2 with u = v/v_dc, all in Q2.30.
-        let legs = Legs::of(bus.fraction_within(a), bus.fraction_within(b));
+        let legs = Legs::of(recip.fraction_within(a), recip.fraction_within(b));
         let span = legs.span();
         if span <= self.span_max {
             return SvpwmOutput {
@@ -293,7 +284,7 @@ impl SvpwmConfig {
         // Beyond the hexagon: every leg's offset and the vector shrunk by 1 − c, c the
         // series of 1 − S/span (module documentation), or exactly by a division far beyond.
         let Some(c) = self.shrink(span) else {
-            return self.beyond_the_bus(v, vdc, bus);
+            return self.beyond_the_bus(v, vdc, recip);
         };
         let shrink = |x: i32| x - mul_q19(x, c);
         SvpwmOutput {
@@ -336,14 +327,14 @@ impl SvpwmConfig {
     /// the period.
     #[cold]
     #[inline(never)]
-    fn beyond_the_bus(&self, v: AlphaBeta, vdc: Pu, bus: BusReciprocal) -> SvpwmOutput {
+    fn beyond_the_bus(&self, v: AlphaBeta, vdc: Pu, recip: Reciprocal) -> SvpwmOutput {
         let (a, b) = (v.alpha.to_bits(), v.beta.to_bits());
         let bound = vdc.to_bits() as u32;
         let mut n = 0;
         while (a >> n).unsigned_abs().max((b >> n).unsigned_abs()) > bound {
             n += 1;
         }
-        let (ua, ub) = (bus.fraction_within(a >> n), bus.fraction_within(b >> n));
+        let (ua, ub) = (recip.fraction_within(a >> n), recip.fraction_within(b >> n));
         // Halved, a component above half the bus: |u| > ½, span ≥ 1.5 |u| > ¾ S, and
         // k/2 = (S/8)/(s/4) ≤ ⅔ in Q2.30 (the divisor rounded up, the result down: k short).
         let span = Legs::of(ua, ub).span();
@@ -454,58 +445,6 @@ impl Legs {
     }
 }
 
-/// What the modulator needs of the last bus reading seen: the circle's radius and the
-/// reading's [`Reciprocal`], recomputed only when the reading changes.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct BusReciprocal {
-    /// The bus reading (bits of [`Pu`]) the rest belongs to; 0 when empty (never a valid bus).
-    vdc: i32,
-    /// `1/v_dc`: `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`].
-    recip: Reciprocal,
-    /// `m v_dc/√3`.
-    v_max: Pu,
-}
-
-impl BusReciprocal {
-    /// The bus terms of `vdc > 0` for the modulator `m`: from the cache when `vdc` is the
-    /// last reading, else computed and stored (a reading `≤ 0`, which the modulator never
-    /// passes, gives 0).
-    #[inline]
-    pub(crate) fn get(&mut self, vdc: Pu, m: &SvpwmConfig) -> Self {
-        let bits = vdc.to_bits();
-        // The empty cache's reading, 0, is below any bus the modulator passes here.
-        if bits != self.vdc {
-            *self = Self {
-                vdc: bits,
-                recip: Reciprocal::of(bits),
-                v_max: m.v_max(vdc),
-            };
-        }
-        *self
-    }
-
-    /// The reading's [`Reciprocal`] (zero for a reading `≤ 0`).
-    #[inline(always)]
-    pub(crate) fn recip(&self) -> Reciprocal {
-        self.recip
-    }
-
-    /// `x/v_dc` in Q2.30 for `x` in the bits of [`Pu`], rounded and saturated; exact to the
-    /// rounding for every vector inside the circle (`|x| ≤ v_dc/√3`).
-    #[cfg(any(test, feature = "overmodulation"))]
-    #[inline(always)]
-    fn fraction(self, x: i32) -> i32 {
-        self.recip.fraction(x)
-    }
-
-    /// [`BusReciprocal::fraction`] for `|x| ≤ v_dc` (checked by the caller): no saturation
-    /// tests.
-    #[inline(always)]
-    fn fraction_within(self, x: i32) -> i32 {
-        self.recip.fraction_within(x)
-    }
-}
-
 /// Duties of the three legs, Q2.30 in [0, 1]: the fraction of the PWM period each high-side
 /// switch is on, centred in the period.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -567,6 +506,19 @@ pub struct SvpwmOutput {
     pub saturated: bool,
     /// The bus is at or below `vdc_min`: duties ½.
     pub bus_low: bool,
+}
+
+impl SvpwmOutput {
+    /// The output for a bus at or below `vdc_min`: duties ½, no voltage, both flags.
+    const BUS_LOW: Self = Self {
+        duties: Duties::HALF,
+        v: AlphaBeta {
+            alpha: Pu::ZERO,
+            beta: Pu::ZERO,
+        },
+        saturated: true,
+        bus_low: true,
+    };
 }
 
 #[cfg(test)]

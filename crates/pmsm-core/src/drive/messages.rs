@@ -157,8 +157,12 @@ pub(crate) struct Window {
     pub saturated: bool,
     /// The high-frequency injection gave the angle at the last sample.
     pub injecting: bool,
-    /// The last sample's phase currents and bus voltage.
+    /// The last sample's phase currents.
     pub i_abc: Abc,
+    /// The bus as the control path took it at its last step: the reading its bus terms were
+    /// computed from, within 0.2 % of that step's (`BusReciprocal`), so that the task's
+    /// voltage limits are the modulator's (zero before the control path first runs; the task
+    /// reads it in the closed loop only).
     pub vdc: Pu,
     /// Each phase's mean squared current over the period (Q8.12 squares).
     pub power: [u32; 3],

@@ -3,7 +3,7 @@
 
 use super::OVERMOD_SIX_STEP_REQUEST;
 #[cfg(any(test, feature = "overmodulation"))]
-use super::{BusReciprocal, Duties, SvpwmOutput};
+use super::{Duties, SvpwmOutput};
 #[cfg(any(test, feature = "overmodulation"))]
 use crate::frames::{Abc, AlphaBeta, clarke, inverse_clarke};
 #[cfg(any(test, feature = "overmodulation"))]
@@ -18,10 +18,10 @@ const LAMBDA_SLOPE_Q24: i64 = ((1u64 << 24) as f64 / (0.5625 - 4.0 / 9.0) + 0.5)
 #[cfg(any(test, feature = "overmodulation"))]
 /// The overmodulating modulator (module documentation) for a bus above `vdc_min`.
 #[inline(always)]
-pub(super) fn overmodulate(v: AlphaBeta, vdc: Pu, bus: BusReciprocal, rail: i32) -> SvpwmOutput {
+pub(super) fn overmodulate(v: AlphaBeta, vdc: Pu, recip: Reciprocal, rail: i32) -> SvpwmOutput {
     let (ua, ub) = (
-        bus.fraction(v.alpha.to_bits()),
-        bus.fraction(v.beta.to_bits()),
+        recip.fraction(v.alpha.to_bits()),
+        recip.fraction(v.beta.to_bits()),
     );
     let ph = inverse_clarke(AlphaBeta {
         alpha: Pu::from_bits(ua),

@@ -226,3 +226,37 @@ proptest! {
         check_modulated(&SvpwmConfig::default(), al, be, vdc)?;
     }
 }
+
+/// The bus terms are kept while the reading stays within 2⁻⁹ of theirs, and the modulator on
+/// them is the modulator on their reading, bit for bit; a reading beyond takes new terms.
+#[test]
+fn the_bus_terms_are_kept_within_their_tolerance() {
+    let c = SvpwmConfig::default();
+    let v = AlphaBeta {
+        alpha: pu_from_f64(0.41),
+        beta: pu_from_f64(-0.23),
+    };
+    let vdc = pu_from_f64(1.7);
+    let tol = vdc.to_bits() >> BUS_TOLERANCE_SHIFT;
+    let mut cache = BusReciprocal::default();
+    let first = *cache.get(vdc);
+    assert_eq!(first.reading(), vdc);
+    let on = |bus: &BusReciprocal| c.modulate_on(v, bus.reading(), bus.recip());
+    for d in [-tol, -tol / 2, -1, 0, 1, tol / 3, tol] {
+        let bus = *cache.get(Pu::from_bits(vdc.to_bits() + d));
+        assert_eq!(bus, first, "a reading {d} LSB off");
+        assert_eq!(on(&bus), c.modulate(v, vdc));
+    }
+    // 0.2 % is 0.0033 pu of this bus: a reading beyond takes its own terms.
+    for d in [tol + 1, -tol - 1] {
+        let reading = Pu::from_bits(vdc.to_bits() + d);
+        let mut cache = first;
+        let bus = *cache.get(reading);
+        assert_eq!(bus.reading(), reading);
+        assert_eq!(on(&bus), c.modulate(v, reading));
+    }
+    // The empty cache keeps nothing but the reading 0; a low bus is the low bus's output.
+    let mut empty = BusReciprocal::default();
+    assert_eq!(empty.get(Pu::ZERO).reading(), Pu::ZERO);
+    assert!(on(empty.get(Pu::from_bits(1))).bus_low);
+}

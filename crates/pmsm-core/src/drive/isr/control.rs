@@ -7,7 +7,7 @@ use crate::control::current::CurrentInput;
 use crate::deadtime::CurrentSource;
 use crate::drive::interface::{DriveInput, DriveOutput};
 use crate::frames::{AlphaBeta, Dq, inverse_park, inverse_park_frame, park};
-use crate::num::{Pu, Unit, follow};
+use crate::num::{Pu, Reciprocal, Unit, follow};
 use crate::svpwm::SvpwmOutput;
 
 impl DriveIsr {
@@ -26,14 +26,17 @@ impl DriveIsr {
             i_ref,
             frame,
         } = setpoint;
-        let vdc = input.vdc;
         // Current loops, in the setpoint's frame.
         let i_dq = match frame {
             Some(f) => f.i_dq,
             None => park(i, self.estimator.sin_cos_of(theta)),
         };
         // The bus terms first: the current loops share their reciprocal with the modulator.
-        let inv_vdc = self.inv_vdc.get(vdc, &self.config.svpwm).recip();
+        // From here on the bus is the reading they were computed from, within 0.2 % of this
+        // sample's (`BusReciprocal`): the loops' circle, the dead-time compensation and the
+        // modulator take the same bus.
+        let bus = self.inv_vdc.get(input.vdc);
+        let (vdc, inv_vdc) = (bus.reading(), bus.recip());
         let out = self.current.step_on(
             &CurrentInput {
                 i_ref,
@@ -70,15 +73,15 @@ impl DriveIsr {
             inverse_park(v_dq, sc_mid)
         };
         // Dead-time compensation, then the modulator.
-        let v_dt = self.deadtime_vector(input.vdc, i_dq, i_ref, sc_mid);
+        let v_dt = self.deadtime_vector(vdc, i_dq, i_ref, sc_mid);
         #[cfg(feature = "overmodulation")]
         let m = if self.config.svpwm.overmodulation() {
-            self.overmodulate(input, v_ref, v_dt)
+            self.overmodulate(input, vdc, inv_vdc, v_ref, v_dt)
         } else {
-            self.modulate(v_ref, vdc, v_dt)
+            self.modulate(v_ref, vdc, inv_vdc, v_dt)
         };
         #[cfg(not(feature = "overmodulation"))]
-        let m = self.modulate(v_ref, vdc, v_dt);
+        let m = self.modulate(v_ref, vdc, inv_vdc, v_dt);
         self.frame_omega = omega;
         self.v_dt = v_dt;
         self.telemetry.theta = theta;
@@ -112,11 +115,17 @@ impl DriveIsr {
     /// [`DriveIsr::control`]'s linear modulation of `v_ref` with the dead-time compensation
     /// `v_dt`; the estimator is given the modulated vector less the dead-time error.
     #[inline(always)]
-    fn modulate(&mut self, v_ref: AlphaBeta, vdc: Pu, v_dt: AlphaBeta) -> SvpwmOutput {
+    fn modulate(
+        &mut self,
+        v_ref: AlphaBeta,
+        vdc: Pu,
+        inv_vdc: Reciprocal,
+        v_dt: AlphaBeta,
+    ) -> SvpwmOutput {
         let c = &self.config;
         let m = c
             .svpwm
-            .modulate_cached(c.deadtime.command(v_ref, v_dt), vdc, &mut self.inv_vdc);
+            .modulate_on(c.deadtime.command(v_ref, v_dt), vdc, inv_vdc);
         let v_applied = c.deadtime.estimator_voltage(m.v, v_dt);
         self.v_est = self.delayed(v_applied);
         m
@@ -134,15 +143,15 @@ impl DriveIsr {
     fn overmodulate(
         &mut self,
         input: &DriveInput,
+        vdc: Pu,
+        inv_vdc: Reciprocal,
         v_ref: AlphaBeta,
         v_dt: AlphaBeta,
     ) -> SvpwmOutput {
         let c = &self.config;
-        let m = c.svpwm.overmodulate_cached(
-            c.deadtime.command(v_ref, v_dt),
-            input.vdc,
-            &mut self.inv_vdc,
-        );
+        let m = c
+            .svpwm
+            .overmodulate_on(c.deadtime.command(v_ref, v_dt), vdc, inv_vdc);
         let d = m.duties;
         let held = |x: Unit| x == Unit::ZERO || x == Unit::ONE;
         let v_dt = if held(d.a) || held(d.b) || held(d.c) {
@@ -154,7 +163,7 @@ impl DriveIsr {
                 }
             }
             c.deadtime
-                .error_vector_abc_cached(i, input.vdc, &mut self.deadtime_bus)
+                .error_vector_abc_cached(i, vdc, &mut self.deadtime_bus)
         } else {
             v_dt
         };
@@ -222,8 +231,72 @@ fn turn_coarse(i: Dq, sc: SinCos) -> AlphaBeta {
 mod tests {
     use super::turn_coarse;
     use crate::angle::Angle;
-    use crate::frames::{Dq, inverse_park};
+    use crate::drive::{Drive, DriveConfig, DriveInput, DriveOptions, StartupMode};
+    use crate::fixtures::{inverter_b, motor_b};
+    use crate::frames::{AlphaBeta, Dq, inverse_clarke, inverse_park};
     use crate::num::Pu;
+    use crate::svpwm::BUS_TOLERANCE_SHIFT;
+
+    /// A bus reading that moves by up to 2⁻⁹ of the first at every sample, as a converter's
+    /// does, leaves the drive's duties bit for bit those of the steady reading (the control
+    /// path and the task take the kept reading); a step beyond takes the new reading.
+    #[test]
+    fn a_bus_reading_moving_within_its_tolerance_leaves_the_duties() {
+        let (m, inv) = (motor_b(), inverter_b());
+        let options = DriveOptions {
+            startup: Some(StartupMode::Known(Angle::ZERO)),
+            ..DriveOptions::default()
+        };
+        let config = DriveConfig::from_params(&m, &inv, inv.pwm_hz, options)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let (mut steady, mut moving) = (Drive::new(config), Drive::new(config));
+        let vdc = Pu::from_num(1.732);
+        let tol = vdc.to_bits() >> BUS_TOLERANCE_SHIFT;
+        let (mut driven, mut differ) = (0, 0);
+        for drive in [&mut steady, &mut moving] {
+            drive.start();
+            drive.set_speed_ref(Pu::from_num(0.3));
+        }
+        for k in 0..1100 {
+            let theta = 0.02 * k as f64;
+            let i_abc = inverse_clarke(AlphaBeta {
+                alpha: Pu::from_num(0.3 * libm::cos(theta)),
+                beta: Pu::from_num(0.3 * libm::sin(theta)),
+            });
+            // Steady while the drive takes its first bus terms (at the first window), then
+            // within their tolerance, then 1 % up from step 800.
+            let jitter = if k < 16 {
+                0
+            } else {
+                [0, tol, -tol, tol / 2, -1, 3][k % 6]
+            };
+            let step = if k >= 800 { vdc.to_bits() / 100 } else { 0 };
+            let reading = Pu::from_bits(vdc.to_bits() + jitter + step);
+            let a = steady.step(&DriveInput { i_abc, vdc });
+            let b = moving.step(&DriveInput {
+                i_abc,
+                vdc: reading,
+            });
+            let kept = moving.isr().inv_vdc.reading();
+            if k < 800 {
+                assert_eq!(a, b, "step {k}");
+            } else if b.pwm_on {
+                // Beyond the tolerance: the bus of the reading 1 % up, kept within its own.
+                driven += 1;
+                let off = (kept.to_bits() - reading.to_bits()).abs();
+                assert!(
+                    off <= 2 * tol && kept > vdc,
+                    "step {k}: {kept} for {reading}"
+                );
+                differ += usize::from(a.duties != b.duties);
+            }
+            if k >= 16 && steady.isr().active() {
+                assert_eq!(steady.isr().inv_vdc.reading(), vdc, "step {k}");
+            }
+        }
+        // The synthetic current holds the drive's loops past step 1100 (every build's).
+        assert!(driven == 300 && differ > 290, "{differ} of {driven}");
+    }
 
     /// Against the exact rotation: within 2⁻¹⁰ pu for currents within ±15 pu at every angle.
     #[test]

@@ -75,7 +75,7 @@ impl DriveIsr {
             input.i_abc.a,
             input.i_abc.b,
             input.i_abc.c,
-            input.vdc,
+            self.inv_vdc.reading(),
         ] {
             w.i32(x.to_bits());
         }
@@ -118,7 +118,7 @@ impl DriveIsr {
             saturated: t.saturated,
             injecting: self.injecting(),
             i_abc: input.i_abc,
-            vdc: input.vdc,
+            vdc: self.inv_vdc.reading(),
             power: self.power_sum,
         }
     }
