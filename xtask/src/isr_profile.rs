@@ -1,5 +1,7 @@
-//! `cargo xtask isr-profile [--write] [--lines]`: where the interrupt step's instructions go,
-//! on both machines of `scripts/pil.sh` (`--lines`: also the source lines that cost most).
+//! `cargo xtask isr-profile [--write] [--lines] [--bench NAME]`: where the interrupt step's
+//! instructions go, on both machines of `scripts/pil.sh` (`--lines`: also the source lines that
+//! cost most; `--bench isr_nlo`, `isr_ao` or `isr_mras_emf`: a back-EMF estimator's drive, in
+//! the image of feature `identify`, instead of the current-model MRAS's recorded run).
 //!
 //! The PIL firmware (`examples/qemu`, built as `scripts/pil.sh` builds it) runs in QEMU with
 //! one instruction per translation block and the execution log on (`-singlestep -d
@@ -70,10 +72,38 @@ const MACHINES: [(&str, &str, &str); 2] = [
     ("thumbv6m-none-eabi", "cortex-m0", "microbit"),
 ];
 
+/// The benchmarks the profile follows: the default one's (recorded, in the image with the
+/// recording) and the back-EMF estimators' (in the image of feature `identify`).
+const BENCHES: [(&str, &str); 4] = [
+    (
+        "isr_mras_current",
+        "motor B's recorded closed loop, current-model MRAS, defaults",
+    ),
+    ("isr_nlo", "light motor A's closed loop with the NLO"),
+    ("isr_ao", "light motor A's closed loop with the AO"),
+    (
+        "isr_mras_emf",
+        "light motor A's closed loop with the MRAS on the EMF",
+    ),
+];
+
 pub fn main(args: &[String]) -> Result<()> {
     let write = args.iter().any(|a| a == "--write");
     let lines = args.iter().any(|a| a == "--lines");
-    let (section, columns) = section()?;
+    let bench = match args.iter().position(|a| a == "--bench") {
+        Some(k) => {
+            let name = args.get(k + 1).map(String::as_str).unwrap_or("");
+            BENCHES.iter().position(|b| b.0 == name).with_context(|| {
+                let names: Vec<_> = BENCHES.iter().map(|b| b.0).collect();
+                format!("--bench takes one of {}, not `{name}`", names.join(", "))
+            })?
+        }
+        None => 0,
+    };
+    if write && bench != 0 {
+        bail!("--write writes the section of {} only", BENCHES[0].0);
+    }
+    let (section, columns) = section(bench)?;
     print!("{section}");
     if lines {
         for (cpu, p) in &columns {
@@ -99,20 +129,23 @@ pub fn kept_section() -> String {
     crate::family::section_span(&doc, TITLE).map_or(String::new(), |(a, b)| doc[a..b].to_owned())
 }
 
-/// Builds, traces and attributes on both machines; the markdown section and the profiles.
-fn section() -> Result<(String, Vec<(&'static str, Profile)>)> {
+/// Builds, traces and attributes on both machines the benchmark `BENCHES[bench]`; the
+/// markdown section and the profiles.
+fn section(bench: usize) -> Result<(String, Vec<(&'static str, Profile)>)> {
     let qemu = crate::root().join("examples/qemu");
     let recording = recording(&qemu)?;
     let mut columns = Vec::new();
     for (target, cpu, machine) in MACHINES {
         eprintln!("isr-profile: {cpu}: building and tracing (a few minutes)");
-        let elf = build(&qemu, target, &recording)?;
+        let elf = build(&qemu, target, &recording, bench)?;
         columns.push((cpu, profile(&elf, cpu, machine)?));
     }
+    let (name, what) = BENCHES[bench];
     let mut s = format!(
         "{TITLE}\n\n`cargo xtask isr-profile --write` (the execution log of QEMU, one \
-         instruction per block, over the `isr_mras_current` benchmark of `scripts/pil.sh`: motor \
-         B's recorded closed loop, current-model MRAS, defaults): instructions per call of \
+         instruction per block, over the `{name}` benchmark of `scripts/pil.sh`: {what}; \
+         `--bench isr_nlo`, `isr_ao` or `isr_mras_emf` follows a back-EMF estimator's instead): \
+         instructions per call of \
          `DriveIsr::step` in the closed loop, by part, each instruction counted in the outermost \
          function inlined at it that names a part (in an out-of-line helper that names none, a \
          wide product on the Cortex-M0, its caller's). Without the meter's overhead, so a little \
@@ -126,8 +159,16 @@ fn section() -> Result<(String, Vec<(&'static str, Profile)>)> {
     for name in names {
         let cell = |c: &Profile| c.parts.get(name).map_or(0.0, |n| n / c.calls as f64);
         let worst = |c: &Profile| c.worst.get(name).copied().unwrap_or(0.0);
+        // The estimator's part by the benchmark's estimator.
+        let label = match (name, bench) {
+            (n, 1) if n == PARTS[0].0 => "estimator (NLO)",
+            (n, 2) if n == PARTS[0].0 => "estimator (AO)",
+            (n, 3) if n == PARTS[0].0 => "estimator (MRAS on the EMF)",
+            (n, 1..) if n == PARTS[1].0 => "sin/cos (out of line: the estimator's, the drive's)",
+            _ => name,
+        };
         s += &format!(
-            "| {name} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
+            "| {label} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
             cell(&columns[0].1),
             worst(&columns[0].1),
             cell(&columns[1].1),
@@ -197,21 +238,20 @@ fn recording(qemu: &Path) -> Result<PathBuf> {
     Ok(path)
 }
 
-/// The PIL firmware for `target`, with `recording` embedded; its ELF.
-fn build(qemu: &Path, target: &str, recording: &Path) -> Result<PathBuf> {
-    run(Command::new("cargo")
-        .current_dir(qemu)
+/// The PIL firmware for `target` that runs the benchmark `BENCHES[bench]` between the
+/// profile's marks (the image with `recording` embedded, or that of feature `identify` built
+/// with `PIL_PROFILE`); its ELF.
+fn build(qemu: &Path, target: &str, recording: &Path, bench: usize) -> Result<PathBuf> {
+    let mut cmd = Command::new("cargo");
+    cmd.current_dir(qemu)
         .env("PIL_RECORDING", recording)
-        .args([
-            "build",
-            "--release",
-            "-q",
-            "-p",
-            "pmsm-pil-firmware",
-            "--target",
-            target,
-        ]))
-    .with_context(|| format!("the firmware for {target}"))?;
+        .env("PIL_PROFILE", BENCHES[bench].0)
+        .args(["build", "--release", "-q", "-p", "pmsm-pil-firmware"])
+        .args(["--target", target]);
+    if bench != 0 {
+        cmd.args(["--features", "identify"]);
+    }
+    run(&mut cmd).with_context(|| format!("the firmware for {target}"))?;
     Ok(qemu.join("target").join(target).join("release/pil"))
 }
 
@@ -308,7 +348,7 @@ fn symbols(elf: &Path) -> Result<Symbols> {
         if name.contains("10end_period") {
             end_period = Some((a, a + n));
         }
-        if name.contains("Estimator$GT$6update") && !name.contains("AnyEstimator") {
+        if name.contains("Estimator$GT$6update") {
             updates.push((a, a + n));
         }
     }

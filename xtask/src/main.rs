@@ -22,8 +22,9 @@
 //!   WebAssembly and its page) and serves it on 127.0.0.1 (`web.rs`, docs/workbench.md).
 //! - `cargo xtask map`: the operating map of motors A, B, C (figures and its section of
 //!   `docs/PERFORMANCE.md`).
-//! - `cargo xtask isr-profile [--write]`: where the interrupt step's instructions go on the
-//!   Cortex-M4 and the Cortex-M0, from QEMU's execution log (`isr_profile.rs`).
+//! - `cargo xtask isr-profile [--write] [--lines] [--bench NAME]`: where the interrupt step's
+//!   instructions go on the Cortex-M4 and the Cortex-M0, from QEMU's execution log
+//!   (`isr_profile.rs`).
 
 mod accuracy;
 mod board;
@@ -130,7 +131,7 @@ fn main() -> Result<()> {
             Ok(())
         }
         _ => bail!(
-            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | isr-profile [--write] | {} | identify-family [N] [--seed S] | {} | {}",
+            "usage: cargo xtask perf | figures | examples | robustness [R L PSI] | light-load | plant-speed | sweep [N] | map | isr-profile [--write] [--lines] [--bench NAME] | {} | identify-family [N] [--seed S] | {} | {}",
             family::USAGE,
             injection::USAGE,
             web::USAGE

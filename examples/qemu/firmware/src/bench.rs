@@ -832,10 +832,11 @@ fn run_drive(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) -> Result<(), 
     Ok(())
 }
 
-/// Marks the start of the `isr_mras_current` benchmark for `cargo xtask isr-profile`, which
-/// attributes the instructions QEMU's execution log shows between this call and
-/// [`profile_end`]'s to the parts of the interrupt step. The figures are not affected: they
-/// count the measured calls only.
+/// Marks the start of the `isr_mras_current` benchmark (or, in the image of feature
+/// `identify` built with `PIL_PROFILE`, of that back-EMF estimator's) for `cargo xtask
+/// isr-profile`, which attributes the instructions QEMU's execution log shows between this
+/// call and [`profile_end`]'s to the parts of the interrupt step. The figures are not
+/// affected: they count the measured calls only.
 #[inline(never)]
 fn profile_begin() {
     black_box(1u32);
@@ -994,7 +995,17 @@ pub fn run_estimators(meter: &Meter, report: &mut dyn FnMut(&str, &Stats)) {
         (EstimatorKind::Ao, "isr_ao", "task_ao"),
         (EstimatorKind::MrasEmf, "isr_mras_emf", "task_mras_emf"),
     ] {
-        if let Some(st) = bench_estimator_drive(meter, kind) {
+        // `cargo xtask isr-profile --bench <isr>` builds this image with `PIL_PROFILE=<isr>`:
+        // that benchmark between the profile's marks.
+        let profiled = option_env!("PIL_PROFILE") == Some(isr);
+        if profiled {
+            profile_begin();
+        }
+        let sides = bench_estimator_drive(meter, kind);
+        if profiled {
+            profile_end();
+        }
+        if let Some(st) = sides {
             report(isr, &st.isr);
             report(task, &st.task);
         }
