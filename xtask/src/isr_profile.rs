@@ -72,18 +72,21 @@ const MACHINES: [(&str, &str, &str); 2] = [
     ("thumbv6m-none-eabi", "cortex-m0", "microbit"),
 ];
 
-/// The benchmarks the profile follows: the default one's (recorded, in the image with the
-/// recording) and the back-EMF estimators' (in the image of feature `identify`).
-const BENCHES: [(&str, &str); 4] = [
+/// The benchmarks the profile follows, what each runs and its estimator: the default one's
+/// (recorded, in the image with the recording) and the back-EMF estimators' (in the image of
+/// feature `identify`).
+const BENCHES: [(&str, &str, &str); 4] = [
     (
         "isr_mras_current",
         "motor B's recorded closed loop, current-model MRAS, defaults",
+        "current-model MRAS",
     ),
-    ("isr_nlo", "light motor A's closed loop with the NLO"),
-    ("isr_ao", "light motor A's closed loop with the AO"),
+    ("isr_nlo", "light motor A's closed loop with the NLO", "NLO"),
+    ("isr_ao", "light motor A's closed loop with the AO", "AO"),
     (
         "isr_mras_emf",
         "light motor A's closed loop with the MRAS on the EMF",
+        "MRAS on the EMF",
     ),
 ];
 
@@ -140,7 +143,7 @@ fn section(bench: usize) -> Result<(String, Vec<(&'static str, Profile)>)> {
         let elf = build(&qemu, target, &recording, bench)?;
         columns.push((cpu, profile(&elf, cpu, machine)?));
     }
-    let (name, what) = BENCHES[bench];
+    let (name, what, estimator) = BENCHES[bench];
     let mut s = format!(
         "{TITLE}\n\n`cargo xtask isr-profile --write` (the execution log of QEMU, one \
          instruction per block, over the `{name}` benchmark of `scripts/pil.sh`: {what}; \
@@ -159,13 +162,14 @@ fn section(bench: usize) -> Result<(String, Vec<(&'static str, Profile)>)> {
     for name in names {
         let cell = |c: &Profile| c.parts.get(name).map_or(0.0, |n| n / c.calls as f64);
         let worst = |c: &Profile| c.worst.get(name).copied().unwrap_or(0.0);
-        // The estimator's part by the benchmark's estimator.
-        let label = match (name, bench) {
-            (n, 1) if n == PARTS[0].0 => "estimator (NLO)",
-            (n, 2) if n == PARTS[0].0 => "estimator (AO)",
-            (n, 3) if n == PARTS[0].0 => "estimator (MRAS on the EMF)",
-            (n, 1..) if n == PARTS[1].0 => "sin/cos (out of line: the estimator's, the drive's)",
-            _ => name,
+        // The estimator's part by the benchmark's estimator; the back-EMF estimators' sin/cos
+        // are out of line, their own with the drive's.
+        let label = if name == PARTS[0].0 {
+            format!("estimator ({estimator})")
+        } else if name == PARTS[1].0 && bench != 0 {
+            "sin/cos (out of line: the estimator's, the drive's)".to_owned()
+        } else {
+            name.to_owned()
         };
         s += &format!(
             "| {label} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
@@ -245,11 +249,12 @@ fn build(qemu: &Path, target: &str, recording: &Path, bench: usize) -> Result<Pa
     let mut cmd = Command::new("cargo");
     cmd.current_dir(qemu)
         .env("PIL_RECORDING", recording)
-        .env("PIL_PROFILE", BENCHES[bench].0)
         .args(["build", "--release", "-q", "-p", "pmsm-pil-firmware"])
         .args(["--target", target]);
+    // The default benchmark's marks are in the image as `scripts/pil.sh` builds it.
     if bench != 0 {
-        cmd.args(["--features", "identify"]);
+        cmd.env("PIL_PROFILE", BENCHES[bench].0)
+            .args(["--features", "identify"]);
     }
     run(&mut cmd).with_context(|| format!("the firmware for {target}"))?;
     Ok(qemu.join("target").join(target).join("release/pil"))

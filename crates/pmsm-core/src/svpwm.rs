@@ -229,9 +229,7 @@ impl SvpwmConfig {
     /// it from one sample to the next while the bus reading stays within 0.2 % of the one it
     /// was taken for).
     pub fn modulate(&self, v: AlphaBeta, vdc: Pu) -> SvpwmOutput {
-        if vdc <= self.vdc_min {
-            return SvpwmOutput::BUS_LOW;
-        }
+        // The modulators give the low bus's output at or below `vdc_min` themselves.
         let recip = Reciprocal::of(vdc.to_bits());
         #[cfg(any(test, feature = "overmodulation"))]
         if self.overmodulation {
