@@ -34,7 +34,7 @@ pub const TITLE: &str = "## Where the interrupt step's instructions go";
 /// `addr2line` gives) that belong to it, in the order they are matched.
 const PARTS: [(&str, &[&str]); 8] = [
     (
-        "estimator (current-model MRAS)",
+        "estimator",
         &["as pmsm_core::observer::Estimator>::update", "AnyEstimator"],
     ),
     ("sin/cos (the estimator's next frame)", &["sin_cos"]),
@@ -114,6 +114,7 @@ pub fn main(args: &[String]) -> Result<()> {
             let mut v: Vec<_> = p.lines.iter().collect();
             v.sort_by(|a, b| b.1.total_cmp(a.1));
             for ((part, at), n) in v.iter().take(60) {
+                let part = label(part, bench);
                 println!("{:7.1}  {part}: {at}", *n / p.calls as f64);
             }
         }
@@ -122,6 +123,18 @@ pub fn main(args: &[String]) -> Result<()> {
         crate::family::write_performance(|doc| crate::family::put_section(doc, TITLE, &section))?;
     }
     Ok(())
+}
+
+/// A part's name as benchmark `bench` shows it: the estimator's by the benchmark's estimator;
+/// the back-EMF estimators' sin/cos are out of line, their own with the drive's.
+fn label(name: &str, bench: usize) -> String {
+    if name == PARTS[0].0 {
+        format!("estimator ({})", BENCHES[bench].2)
+    } else if name == PARTS[1].0 && bench != 0 {
+        "sin/cos (out of line: the estimator's, the drive's)".to_owned()
+    } else {
+        name.to_owned()
+    }
 }
 
 /// The section of `cargo xtask perf`'s document, kept as it is (`isr-profile --write`
@@ -143,7 +156,7 @@ fn section(bench: usize) -> Result<(String, Vec<(&'static str, Profile)>)> {
         let elf = build(&qemu, target, &recording, bench)?;
         columns.push((cpu, profile(&elf, cpu, machine)?));
     }
-    let (name, what, estimator) = BENCHES[bench];
+    let (name, what, _) = BENCHES[bench];
     let mut s = format!(
         "{TITLE}\n\n`cargo xtask isr-profile --write` (the execution log of QEMU, one \
          instruction per block, over the `{name}` benchmark of `scripts/pil.sh`: {what}; \
@@ -162,15 +175,7 @@ fn section(bench: usize) -> Result<(String, Vec<(&'static str, Profile)>)> {
     for name in names {
         let cell = |c: &Profile| c.parts.get(name).map_or(0.0, |n| n / c.calls as f64);
         let worst = |c: &Profile| c.worst.get(name).copied().unwrap_or(0.0);
-        // The estimator's part by the benchmark's estimator; the back-EMF estimators' sin/cos
-        // are out of line, their own with the drive's.
-        let label = if name == PARTS[0].0 {
-            format!("estimator ({estimator})")
-        } else if name == PARTS[1].0 && bench != 0 {
-            "sin/cos (out of line: the estimator's, the drive's)".to_owned()
-        } else {
-            name.to_owned()
-        };
+        let label = label(name, bench);
         s += &format!(
             "| {label} | {:.0} | {:.0} | {:.0} | {:.0} |\n",
             cell(&columns[0].1),

@@ -144,11 +144,12 @@ pub fn inverse_park(v: Dq, sc: SinCos) -> AlphaBeta {
     }
 }
 
-/// [`park`] in the current-model MRAS's frames: sin and cos taken to 2⁻¹⁴ ([`frame_bits`]),
-/// so within 2⁻¹³ of the exact rotation (2 LSB of a 12-bit converter's full scale are 5e−4),
-/// in half the Cortex-M0's products; tested against `f64`. The MRAS keeps its frames on the
-/// grid and calls [`park_on_grid`] itself.
-#[cfg(test)]
+/// [`park`] in the drive's frames: sin and cos taken to 2⁻¹⁴ ([`frame_bits`]), so within
+/// 2⁻¹³ of the exact rotation (2 LSB of a 12-bit converter's full scale are 5e−4), in half the
+/// Cortex-M0's products; tested against `f64`. The current-model MRAS keeps its frames on the
+/// grid and calls [`park_on_grid`] itself; the drive's step takes the other estimators' and
+/// the open loop's frames with this.
+#[cfg_attr(all(target_arch = "arm", not(target_has_atomic = "32")), inline(never))]
 pub(crate) fn park_frame(v: AlphaBeta, sc: SinCos) -> Dq {
     let (s, c) = frame_bits(sc);
     park_on_grid(v, s, c)
@@ -165,9 +166,8 @@ pub(crate) fn park_on_grid(v: AlphaBeta, s: i32, c: i32) -> Dq {
     }
 }
 
-/// [`inverse_park`] in the current-model MRAS's frames, taken to 2⁻¹⁴ as they are
-/// ([`frame_bits`]): the drive turns its voltage into the phases' frame with it when the MRAS
-/// gives the frame.
+/// [`inverse_park`] in the drive's frames, taken to 2⁻¹⁴ ([`frame_bits`]): the drive turns
+/// its voltage into the phases' frame with it.
 #[cfg_attr(all(target_arch = "arm", not(target_has_atomic = "32")), inline(never))]
 pub(crate) fn inverse_park_frame(v: Dq, sc: SinCos) -> AlphaBeta {
     let (s, c) = frame_bits(sc);

@@ -163,8 +163,8 @@ pub mod tuning {
     };
     pub use crate::deadtime::MEASURED_SIGN_BANDS;
     pub use crate::drive::{
-        AUTO_SALIENCY_MARGIN, OVERSPEED_FACTOR, RECTIFY_GRACE_S, SPEED_FILTER_S,
-        SPEED_LOOP_R_ERROR, WRITE_THRESHOLD,
+        AUTO_SALIENCY_MARGIN, MIN_OPEN_LOOP_RAMP_S, OVERSPEED_FACTOR, RECTIFY_GRACE_S,
+        SPEED_FILTER_S, SPEED_LOOP_R_ERROR, WRITE_THRESHOLD,
     };
     pub use crate::observer::direction::{
         FLIP_SPEED_PU, THRESHOLD_PU as DIRECTION_THRESHOLD_PU,

@@ -82,19 +82,30 @@ pub struct OpenLoopDesign {
 
 impl OpenLoopDesign {
     /// Rated peak current (the per-unit base); an acceleration that takes 20 % of the torque
-    /// that current makes, `0.2 p K_T I / J`; handover at 10 % of the rated electrical speed
+    /// that current makes, `0.2 p K_T I / J`, but none that reaches the handover speed in
+    /// less than [`MIN_OPEN_LOOP_RAMP_S`]; handover at 10 % of the rated electrical speed
     /// (or of the base speed; [`DriveDesign::default_for`] raises it for the MRAS on the EMF
     /// to [`MrasEmfConfig::damped_speed_rad_s`] where that is higher); alignment over 0.5 s.
     pub fn default_for(motor: &MotorParams, base: &PerUnit) -> Self {
         let rated_e = rated_e_rad_s(motor, base);
+        let handover_speed_rad_s = 0.1 * rated_e;
+        let torque_accel = 0.2 * motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2;
         Self {
             current_a: base.current_a,
-            accel_rad_s2: 0.2 * motor.p() * motor.kt_nm_per_a * base.current_a / motor.j_kg_m2,
-            handover_speed_rad_s: 0.1 * rated_e,
+            accel_rad_s2: torque_accel.min(handover_speed_rad_s / MIN_OPEN_LOOP_RAMP_S),
+            handover_speed_rad_s,
             align_time_s: 0.5,
         }
     }
 }
+
+/// The shortest default open-loop ramp from rest to the handover speed, s. A back-EMF
+/// estimator starts from rest and sees an EMF that grows from zero with the speed; a light
+/// rotor under a fifth of its rated torque reaches the handover speed in a millisecond or two
+/// (the GM4108H gimbal motor in 1.6 ms, 40 samples at 25 kHz), while the estimate still swings
+/// about the rotor, and the handover then took it or not as it happened to lie (docs/drive.md,
+/// "OpenLoop"). Ten milliseconds, the least of the handover's wait.
+pub const MIN_OPEN_LOOP_RAMP_S: f64 = 0.01;
 
 /// The rated electrical speed, rad/s (the base speed for a motor without a rating).
 pub(crate) fn rated_e_rad_s(motor: &MotorParams, base: &PerUnit) -> f64 {

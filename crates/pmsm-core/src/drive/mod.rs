@@ -57,8 +57,8 @@ pub use config::DriveConfig;
 pub(crate) use design::rated_e_rad_s;
 pub use design::{
     AUTO_SALIENCY_MARGIN, DEFAULT_HEALTH_LIMIT_PU, DriveDesign, DriveOptions,
-    MAX_PWM_DELAY_SAMPLES, OVERSPEED_FACTOR, OpenLoopDesign, Protection, SPEED_LOOP_R_ERROR,
-    StartupMode,
+    MAX_PWM_DELAY_SAMPLES, MIN_OPEN_LOOP_RAMP_S, OVERSPEED_FACTOR, OpenLoopDesign, Protection,
+    SPEED_LOOP_R_ERROR, StartupMode,
 };
 pub use distortion::{DistortionDesign, DistortionFrozen, DistortionLearner, DistortionStatus};
 pub use handoff::Handoff;

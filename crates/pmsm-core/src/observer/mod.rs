@@ -294,10 +294,11 @@ impl AnyEstimator {
         }
     }
 
-    /// `sin_cos(theta)`, bit for bit: the NLO's own when `theta` is its last estimate's angle
-    /// (it computes that sin/cos for its EMF's direction), computed otherwise. Out of line, as
-    /// the `sin_cos` it stands for: the drive's step keeps its shape (a build without the NLO
-    /// calls `sin_cos` itself).
+    /// The frame at `theta` for the drive's transforms, which take it to 2⁻¹⁴
+    /// (`frames::park_frame`): the NLO's own sin/cos when `theta` is its last estimate's angle
+    /// (it computes that sin/cos for its EMF's direction), else `sin_cos_frame(theta)`. Out of
+    /// line, as the sin/cos it stands for: the drive's step keeps its shape (a build without
+    /// the NLO calls `sin_cos_frame` itself).
     #[cfg_attr(
         any(not(feature = "select-estimators"), feature = "nlo"),
         inline(never)
@@ -310,7 +311,7 @@ impl AnyEstimator {
         match self {
             #[cfg(any(not(feature = "select-estimators"), feature = "nlo"))]
             AnyEstimator::Nlo(e) if e.estimate().theta == theta => e.rotor_sin_cos(),
-            _ => theta.sin_cos(),
+            _ => crate::angle::sin_cos_frame(theta),
         }
     }
 

@@ -192,3 +192,40 @@ fn the_mras_on_the_emf_hands_over_where_its_adaptation_is_damped() {
         );
     }
 }
+
+/// The open loop's default acceleration takes a fifth of the torque of its current, but
+/// reaches the handover speed in no less than `MIN_OPEN_LOOP_RAMP_S`: motor B ramps at
+/// 0.2 p K_T I/J (115 ms); the GM4108H gimbal motor (11 pole pairs, 1.5·10⁻⁵ kg·m², whose
+/// rotor a fifth of its torque takes to a tenth of rated speed in 1.6 ms) over the floor.
+#[test]
+fn the_open_loop_ramp_lasts_at_least_its_floor() {
+    let ramp = |m: &MotorParams, inv: &InverterParams| {
+        let base = PerUnit::new(m, inv, inv.pwm_hz).unwrap();
+        let d = OpenLoopDesign::default_for(m, &base);
+        let torque = 0.2 * m.p() * m.kt_nm_per_a * base.current_a / m.j_kg_m2;
+        (
+            d.handover_speed_rad_s / d.accel_rad_s2,
+            d.accel_rad_s2 / torque,
+        )
+    };
+    let (b, inv_b) = (motor_b(), inverter_b());
+    let (t, share) = ramp(&b, &inv_b);
+    assert!(
+        t > MIN_OPEN_LOOP_RAMP_S && (share - 1.0).abs() < 1e-12,
+        "{t} {share}"
+    );
+    let mut gimbal = MotorParams::new(11, 5.55, 0.0014, 0.0014, 0.01856, 1.5e-5, 4.8e-5);
+    gimbal.rated_speed_rpm = Some(300.0);
+    gimbal.rated_current_a = Some(0.35);
+    let inv = InverterParams {
+        vdc_v: 24.0,
+        pwm_hz: 25e3,
+        dead_time_s: 5e-7,
+        current_full_scale_a: 2.0,
+    };
+    let (t, share) = ramp(&gimbal, &inv);
+    assert!(
+        (t - MIN_OPEN_LOOP_RAMP_S).abs() < 1e-12 && share < 0.2,
+        "{t} {share}"
+    );
+}

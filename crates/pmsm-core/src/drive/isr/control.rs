@@ -2,11 +2,11 @@
 //! dead-time compensation and the modulator (Khlaief, Boussak, Gossa (2012), Fig. 1).
 
 use super::{DriveIsr, Setpoint, mid_frame};
-use crate::angle::{Angle, SinCos};
+use crate::angle::{Angle, SinCos, sin_cos_frame};
 use crate::control::current::CurrentInput;
 use crate::deadtime::CurrentSource;
 use crate::drive::interface::{DriveInput, DriveOutput};
-use crate::frames::{AlphaBeta, Dq, inverse_park, inverse_park_frame, park};
+use crate::frames::{AlphaBeta, Dq, inverse_park_frame, park, park_frame};
 use crate::num::{Pu, Reciprocal, Unit, follow};
 use crate::svpwm::SvpwmOutput;
 
@@ -29,7 +29,11 @@ impl DriveIsr {
         // Current loops, in the setpoint's frame.
         let i_dq = match frame {
             Some(f) => f.i_dq,
-            None => park(i, self.estimator.sin_cos_of(theta)),
+            // Standing still (the alignment, the calibration), exact: the calibration measures
+            // the inverter's voltage error from the loops closed in this frame, and the grid's
+            // 10⁻⁴ moved it enough to change a start (docs/drive.md, "every estimator's frames").
+            None if omega == Pu::ZERO => park(i, theta.sin_cos()),
+            None => park_frame(i, self.estimator.sin_cos_of(theta)),
         };
         // The bus terms first: the current loops share their reciprocal with the modulator.
         // From here on the bus is the reading they were computed from, within 0.2 % of this
@@ -59,19 +63,15 @@ impl DriveIsr {
             None => {
                 let turn = self.config.open_loop.turn_per_speed;
                 let step = turn.apply_bits(omega.to_bits());
-                (theta + Angle(step.wrapping_mul(self.config.mid_turns) >> 1)).sin_cos()
+                sin_cos_frame(theta + Angle(step.wrapping_mul(self.config.mid_turns) >> 1))
             }
         };
         #[cfg(feature = "injection")]
         let v_dq = self.with_injection(out.v);
         #[cfg(not(feature = "injection"))]
         let v_dq = out.v;
-        // In the current-model MRAS's frames, as it turns its own (to 2⁻¹⁴, `park_frame`).
-        let v_ref = if frame.is_some() {
-            inverse_park_frame(v_dq, sc_mid)
-        } else {
-            inverse_park(v_dq, sc_mid)
-        };
+        // In the frames as the transforms take them, to 2⁻¹⁴ (`park_frame`).
+        let v_ref = inverse_park_frame(v_dq, sc_mid);
         // Dead-time compensation, then the modulator.
         let v_dt = self.deadtime_vector(vdc, i_dq, i_ref, sc_mid);
         #[cfg(feature = "overmodulation")]
