@@ -295,8 +295,8 @@ impl AnyEstimator {
     }
 
     /// The frame at `theta` for the drive's transforms, which take it to 2⁻¹⁴
-    /// (`frames::park_frame`): the NLO's own sin/cos when `theta` is its last estimate's angle
-    /// (it computes that sin/cos for its EMF's direction), else `sin_cos_frame(theta)`. Out of
+    /// (`frames::park_frame`): the NLO's own when `theta` is its last estimate's angle (it
+    /// computes `sin_cos_frame(θ̂)` for its EMF's direction), else `sin_cos_frame(theta)`. Out of
     /// line, as the sin/cos it stands for: the drive's step keeps its shape (a build without
     /// the NLO calls `sin_cos_frame` itself).
     #[cfg_attr(
