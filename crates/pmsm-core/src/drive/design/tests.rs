@@ -6,6 +6,16 @@ extern crate std;
 use super::*;
 use crate::fixtures::{inverter_b, motor_b};
 
+/// The 24 V, 25 kHz inverter of the gimbal motors' tests (0.5 µs dead time, 2 A full scale).
+fn gimbal_inverter() -> InverterParams {
+    InverterParams {
+        vdc_v: 24.0,
+        pwm_hz: 25e3,
+        dead_time_s: 0.5e-6,
+        current_full_scale_a: 2.0,
+    }
+}
+
 fn resolved(ld_h: f64, lq_h: f64) -> (f64, StartupMode) {
     let mut m = motor_b();
     m.ld_h = ld_h;
@@ -88,12 +98,7 @@ fn a_light_rotor_gets_a_stiffer_speed_loop() {
     // dip a tenth of base speed).
     let mut gimbal = MotorParams::new(11, 5.55, 1.4e-3, 1.4e-3, 0.01856, 1e-4, 1e-6);
     gimbal.rated_current_a = Some(0.35);
-    let inv = InverterParams {
-        vdc_v: 24.0,
-        pwm_hz: 25e3,
-        dead_time_s: 0.5e-6,
-        current_full_scale_a: 2.0,
-    };
+    let inv = gimbal_inverter();
     let (w, tau_b, ts) = bandwidth(&gimbal, &inv, EstimatorKind::Nlo);
     assert!(
         (w * tau_b - SPEED_STIFFNESS).abs() < 1e-9 && w < SPEED_BANDWIDTH_MAX_TS / ts,
@@ -217,13 +222,7 @@ fn the_open_loop_ramp_lasts_at_least_its_floor() {
     let mut gimbal = MotorParams::new(11, 5.55, 0.0014, 0.0014, 0.01856, 1.5e-5, 4.8e-5);
     gimbal.rated_speed_rpm = Some(300.0);
     gimbal.rated_current_a = Some(0.35);
-    let inv = InverterParams {
-        vdc_v: 24.0,
-        pwm_hz: 25e3,
-        dead_time_s: 5e-7,
-        current_full_scale_a: 2.0,
-    };
-    let (t, share) = ramp(&gimbal, &inv);
+    let (t, share) = ramp(&gimbal, &gimbal_inverter());
     assert!(
         (t - MIN_OPEN_LOOP_RAMP_S).abs() < 1e-12 && share < 0.2,
         "{t} {share}"
