@@ -54,8 +54,8 @@
 //! instructions an operation, an update costs about 13 000 instructions and a write 9 000,
 //! more than a task period's budget; the drive's task runs them as [`Tracker::task_step`]'s
 //! [`TRACKER_STAGES`] stages of at most 5 000, one per task period, the same bits as
-//! `update` then `coefficients`, and so updates every `TRACKER_STAGES` task periods
-//! ([`TrackerDesign::interval_samples`]).
+//! `update` then `coefficients`, at the start of a cycle of
+//! [`TrackerDesign::interval_samples`] (by default ten task periods, the last five idle).
 
 use super::{Drive, DriveState};
 use crate::angle::Angle;
@@ -75,9 +75,10 @@ use filter::{Measurement, Sample};
 /// a new write.
 pub const WRITE_THRESHOLD: f32 = 2e-4;
 
-/// Task periods of [`Tracker::task_step`]'s cycle: an update's three parts, then the new
-/// coefficients' decay and weights (module docs, "Cost"); the drive's tracker updates every
-/// `TRACKER_STAGES` task periods.
+/// The working stages of [`Tracker::task_step`]'s cycle, one per task period: an update's
+/// three parts, then the new coefficients' decay and weights (module docs, "Cost"). The cycle
+/// lasts [`TrackerDesign::interval_samples`] (at least these stages' task periods); the task
+/// periods after its stages are idle.
 pub const TRACKER_STAGES: u32 = 5;
 
 /// What one stage of [`Tracker::task_step`] leaves the next.
@@ -237,8 +238,10 @@ pub struct Tracker {
     /// Below the least speed since last under it and not yet above it by [`SPEED_HYSTERESIS`].
     slow: bool,
     status: TrackerStatus,
-    /// [`Tracker::task_step`]'s place in its cycle, and what its last stage left the next.
+    /// [`Tracker::task_step`]'s place in its cycle, the cycle's task periods, and what its
+    /// last stage left the next.
     stage: u8,
+    periods: u8,
     work: Work,
 }
 
@@ -394,6 +397,9 @@ impl Tracker {
             slow: true,
             status: TrackerStatus::default(),
             stage: 0,
+            // Within [TRACKER_STAGES, 255]: the cast cannot wrap.
+            periods: (d.interval_samples / crate::drive::TASK_PERIOD)
+                .clamp(TRACKER_STAGES, u32::from(u8::MAX)) as u8,
             work: Work::Idle,
         }
     }
@@ -438,16 +444,17 @@ impl Tracker {
         self.apply()
     }
 
-    /// One task period's share of the tracker's work, in a cycle of [`TRACKER_STAGES`]: the
+    /// One task period's share of the tracker's work, in a cycle of
+    /// [`TrackerDesign::interval_samples`] whose first [`TRACKER_STAGES`] task periods work: the
     /// gates and the drift on `input` (the only stage that reads it), the measurement, the
     /// correction and the low-pass to the drive, then, when that moved by more than
     /// [`WRITE_THRESHOLD`], the new coefficients' decay and their weights, returned at the
-    /// cycle's last stage. The stages compute the bits of [`Tracker::update`] then
+    /// last working stage; the cycle's other task periods do nothing. The stages compute the bits of [`Tracker::update`] then
     /// [`Tracker::coefficients`], each about a fifth of their cost (a Cortex-M0 has no FPU:
     /// docs/tracking.md, "Cost on the MCU").
     pub fn task_step(&mut self, input: &TrackerInput) -> Option<ModelCoefficients> {
         let stage = u32::from(self.stage);
-        self.stage = if stage + 1 < TRACKER_STAGES {
+        self.stage = if stage + 1 < u32::from(self.periods) {
             self.stage + 1
         } else {
             0
@@ -473,7 +480,7 @@ impl Tracker {
                 }
             }
             (3, Work::Due) => self.work = Work::Decayed(self.model.decay(self.applied[0])),
-            (_, Work::Decayed(d)) => return self.written_from(&d).ok(),
+            (4, Work::Decayed(d)) => return self.written_from(&d).ok(),
             _ => {}
         }
         None

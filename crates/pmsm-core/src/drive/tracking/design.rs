@@ -66,8 +66,10 @@ pub struct TrackerDesign {
 }
 
 impl TrackerDesign {
-    /// An update every [`TRACKER_STAGES`](super::TRACKER_STAGES) task periods (the drive's
-    /// rate, [`Tracker::task_step`](super::Tracker::task_step)); learning above 10 % of `ω_b`,
+    /// An update every twice [`TRACKER_STAGES`](super::TRACKER_STAGES) task periods (the
+    /// drive's [`Tracker::task_step`](super::Tracker::task_step) works in the first half of
+    /// each cycle: half the task's mean cost of a working cycle on a Cortex-M0, whose `f32` is
+    /// software); learning above 10 % of `ω_b`,
     /// the current within 0.2 `I_b` of its reference, the speed changing by less than `2 ω_b`
     /// per second, 10 ms after entering `Run`; the model's `R` within ±50 %, `ψ` within ±30 %
     /// (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB; 10 K/√s; 1 %
@@ -76,7 +78,7 @@ impl TrackerDesign {
     /// [`TrackerDesign::for_drive`]).
     pub fn default_for(base: &PerUnit) -> Self {
         Self {
-            interval_samples: super::TRACKER_STAGES * crate::drive::TASK_PERIOD,
+            interval_samples: 2 * super::TRACKER_STAGES * crate::drive::TASK_PERIOD,
             min_speed_rad_s: 0.1 * base.omega_e_rad_s,
             max_current_error_a: 0.2 * base.current_a,
             max_accel_rad_s2: 2.0 * base.omega_e_rad_s,

@@ -384,9 +384,9 @@ fn frozen_outside_run_below_the_least_speed_when_saturated_or_in_a_transient() {
     let mut i = input(&s);
     i.running = false;
     check(&mut t, i, Frozen::NotRunning);
-    // 0.01 s at an update every 40 samples of 1/14 kHz: 4 updates settle.
-    assert_eq!(t.design().interval_samples, 40);
-    for _ in 0..4 {
+    // 0.01 s at an update every 80 samples of 1/14 kHz: 2 updates settle.
+    assert_eq!(t.design().interval_samples, 80);
+    for _ in 0..2 {
         check(&mut t, input(&s), Frozen::Settling);
     }
     let slow = steady(&r, 1.5 * r.r0, 0.8 * r.psi0, 0.05, 1.0, 0.0, 0.0, 0.0);
@@ -477,7 +477,10 @@ fn written_coefficients_of_the_model_are_the_drive_s_own() {
 /// about 0.4 pu) with its `L_q di_q/dt` in the voltage, as the plant has it: the largest
 /// distance of `R̂/R₀`, `ψ̂/ψ₀` from 1 over 0.6 s.
 fn drift_in_a_swinging_current(weight: f64) -> f64 {
-    let (mut t, r) = setup(|d| d.transient_weight = weight);
+    let (mut t, r) = setup(|d| {
+        d.transient_weight = weight;
+        d.interval_samples = 40;
+    });
     let m = motor_b();
     let base = PerUnit::new(&m, &inverter_b(), 14e3).unwrap();
     let dt = 8.0 / 14e3;
@@ -547,12 +550,16 @@ fn a_swinging_current_and_the_inverter_near_zero_current_teach_it_little() {
     assert!(t.status().learning, "{:?}", t.status());
 }
 
-/// The drive's cycle of [`TRACKER_STAGES`] task steps computes the bits of one update and of
-/// the write it asks for, and reads its input at the first step only.
+/// The drive's cycle of task steps (its [`TRACKER_STAGES`] working, the rest idle) computes
+/// the bits of one update and of the write it asks for, and reads its input at the first step
+/// only.
 #[test]
 fn the_task_s_stages_are_one_update_and_its_write() {
     let (mut whole, r) = setup(|_| {});
     let mut staged = whole;
+    // The default cycle: twice the working stages.
+    let periods = u32::from(staged.periods);
+    assert_eq!(periods, 2 * TRACKER_STAGES);
     let mut theta = 0.3;
     let mut writes = 0;
     let ignored = TrackerInput {
@@ -567,7 +574,7 @@ fn the_task_s_stages_are_one_update_and_its_write() {
         let i = input(&s);
         let want = whole.update(&i).then(|| whole.coefficients().unwrap());
         let mut got = None;
-        for stage in 0..TRACKER_STAGES {
+        for stage in 0..periods {
             if let Some(c) = staged.task_step(if stage == 0 { &i } else { &ignored }) {
                 got = Some(c);
             }
