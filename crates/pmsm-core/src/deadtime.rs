@@ -338,17 +338,6 @@ impl DeadTimeConfig {
         self.error_vector_abc_cached(i, vdc, &mut DeadTimeBus::default())
     }
 
-    /// [`DeadTimeConfig::error_vector`] with the bus terms cached (see
-    /// [`DeadTimeConfig::error_vector_abc_cached`]).
-    pub(crate) fn error_vector_cached(
-        &self,
-        i: AlphaBeta,
-        vdc: Pu,
-        cache: &mut DeadTimeBus,
-    ) -> AlphaBeta {
-        self.error_vector_abc_cached(inverse_clarke(i), vdc, cache)
-    }
-
     /// [`DeadTimeConfig::error_vector_abc`], bit for bit, with the bus terms `V_dead/3` and
     /// `V_dead/√3` taken from `cache` when `vdc` is the reading they were computed for.
     pub(crate) fn error_vector_abc_cached(

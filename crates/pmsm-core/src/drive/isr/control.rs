@@ -6,7 +6,7 @@ use crate::angle::{Angle, SinCos, sin_cos_frame};
 use crate::control::current::CurrentInput;
 use crate::deadtime::CurrentSource;
 use crate::drive::interface::{DriveInput, DriveOutput};
-use crate::frames::{AlphaBeta, Dq, inverse_park_frame, park, park_frame};
+use crate::frames::{Abc, AlphaBeta, Dq, inverse_park_frame, park, park_frame};
 use crate::num::{Pu, Reciprocal, Unit, follow};
 use crate::svpwm::SvpwmOutput;
 
@@ -199,37 +199,46 @@ impl DriveIsr {
                 q: self.i_q_expected,
             }
         };
-        self.config.deadtime.error_vector_cached(
-            turn_coarse(i, sc_mid),
+        self.config.deadtime.error_vector_abc_cached(
+            phases_coarse(i, sc_mid),
             vdc,
             &mut self.deadtime_bus,
         )
     }
 }
 
-/// `i` turned from the frame at `sc` to αβ to 2⁻¹¹ pu, in 32-bit products (the Cortex-M0 has
-/// no 64-bit multiply): what the dead-time signs need, whose band is hundredths of a pu. Each
-/// current is taken within ±16 pu (the overcurrent trip is far below), each of `sc` to 2⁻¹⁵:
-/// a component is a dot product of (d, q), below 2¹⁵·√2 in Q.11, with (±sin, cos) of length
-/// about 2¹⁵ ([`mid_frame`]'s length is off by parts in 10⁴), so below 2³¹: no wrap.
+/// The phase currents of `i` turned from the frame at `sc`, to 2⁻¹² pu, in 32-bit products
+/// (the Cortex-M0 has no 64-bit multiply): what the dead-time signs need, whose band is
+/// hundredths of a pu. Each current is taken to 2⁻¹³ within ±16 pu (below 2¹⁷; the overcurrent
+/// trip is far below), each of `sc` to 2⁻¹³ (below 2¹³·1.001): α and β are dot products of
+/// (d, q) with (±sin, cos), of length about 2¹³ ([`mid_frame`]'s length is off by parts in
+/// 10⁴), so below 2¹⁷·√2·2¹³·1.001 < 2³¹ in Q.26: no wrap. The legs b and c take `(√3/2) β`
+/// from β's Q.13 (below 2¹⁷·⁵) times √3/2 in Q13 (below 2¹³): below 2³¹ again, and
+/// `α/2 ± (√3/2) β` below 2³¹ as the phases of a vector below 2³¹ in Q.26.
 #[inline(always)]
-fn turn_coarse(i: Dq, sc: SinCos) -> AlphaBeta {
-    // A signed 16-bit saturation (one instruction on the Cortex-M4).
-    let current = |x: Pu| (x.to_bits() >> 13).clamp(-(1 << 15), (1 << 15) - 1);
-    let unit = |x: Unit| x.to_bits() >> 15;
+fn phases_coarse(i: Dq, sc: SinCos) -> Abc {
+    let current = |x: Pu| (x.to_bits() >> 11).clamp(-(1 << 17), (1 << 17) - 1);
+    let unit = |x: Unit| x.to_bits() >> 17;
     let (d, q) = (current(i.d), current(i.q));
     let (s, c) = (unit(sc.sin), unit(sc.cos));
-    // Q.11 · Q.15 = Q.26, to Pu's Q.24.
-    let at = |a: i32, b: i32| Pu::from_bits(a.wrapping_add(b) >> 2);
-    AlphaBeta {
-        alpha: at(d.wrapping_mul(c), q.wrapping_mul(s).wrapping_neg()),
-        beta: at(d.wrapping_mul(s), q.wrapping_mul(c)),
+    // Q.13 · Q.13 = Q.26, to Pu's Q.24.
+    let alpha = d.wrapping_mul(c).wrapping_sub(q.wrapping_mul(s));
+    let beta = d.wrapping_mul(s).wrapping_add(q.wrapping_mul(c));
+    let half_alpha = alpha >> 1;
+    let beta_term = (beta >> 13).wrapping_mul(SQRT3_2_Q13);
+    Abc {
+        a: Pu::from_bits(alpha >> 2),
+        b: Pu::from_bits(beta_term.wrapping_sub(half_alpha) >> 2),
+        c: Pu::from_bits(beta_term.wrapping_add(half_alpha).wrapping_neg() >> 2),
     }
 }
 
+/// √3/2 in Q13 (rounded).
+const SQRT3_2_Q13: i32 = 7_094;
+
 #[cfg(test)]
 mod tests {
-    use super::turn_coarse;
+    use super::phases_coarse;
     use crate::angle::Angle;
     use crate::drive::{Drive, DriveConfig, DriveInput, DriveOptions, StartupMode};
     use crate::fixtures::{inverter_b, motor_b};
@@ -298,9 +307,10 @@ mod tests {
         assert!(driven == 300 && differ > 290, "{differ} of {driven}");
     }
 
-    /// Against the exact rotation: within 2⁻¹⁰ pu for currents within ±15 pu at every angle.
+    /// Against the exact rotation and inverse Clarke transform: each phase within 2⁻¹² pu and
+    /// 2⁻¹² of the current's magnitude, for currents within ±15 pu at every angle.
     #[test]
-    fn the_coarse_turn_is_the_rotation_to_a_thousandth_of_a_unit() {
+    fn the_coarse_phases_are_the_exact_ones_to_2_12() {
         let mut worst = 0.0f64;
         for k in 0..720 {
             let sc = Angle::from_rad(k as f64 * core::f64::consts::TAU / 720.0).sin_cos();
@@ -315,14 +325,13 @@ mod tests {
                     d: Pu::from_num(d),
                     q: Pu::from_num(q),
                 };
-                let (a, b) = (turn_coarse(i, sc), inverse_park(i, sc));
-                let e = (a.alpha - b.alpha)
-                    .to_num::<f64>()
-                    .abs()
-                    .max((a.beta - b.beta).to_num::<f64>().abs());
-                worst = worst.max(e);
+                let (x, y) = (phases_coarse(i, sc), inverse_clarke(inverse_park(i, sc)));
+                let bound = (1.0 + libm::hypot(d, q)) / 4096.0;
+                for (u, v) in [(x.a, y.a), (x.b, y.b), (x.c, y.c)] {
+                    worst = worst.max((u - v).to_num::<f64>().abs() / bound);
+                }
             }
         }
-        assert!(worst < 1.0 / 1024.0, "{worst:e} pu");
+        assert!(worst < 1.0, "{worst} of the bound");
     }
 }
