@@ -238,10 +238,11 @@ pub struct Tracker {
     /// Below the least speed since last under it and not yet above it by [`SPEED_HYSTERESIS`].
     slow: bool,
     status: TrackerStatus,
-    /// [`Tracker::task_step`]'s place in its cycle, the cycle's task periods, and what its
-    /// last stage left the next.
-    stage: u8,
-    periods: u8,
+    /// [`Tracker::task_step`]'s place in its cycle, the cycle's task periods
+    /// ([`TrackerDesign::interval_samples`] in whole task periods, at least [`TRACKER_STAGES`]),
+    /// and what its last stage left the next.
+    stage: u32,
+    cycle_periods: u32,
     work: Work,
 }
 
@@ -397,9 +398,7 @@ impl Tracker {
             slow: true,
             status: TrackerStatus::default(),
             stage: 0,
-            // Within [TRACKER_STAGES, 255]: the cast cannot wrap.
-            periods: (d.interval_samples / crate::drive::TASK_PERIOD)
-                .clamp(TRACKER_STAGES, u32::from(u8::MAX)) as u8,
+            cycle_periods: (d.interval_samples / crate::drive::TASK_PERIOD).max(TRACKER_STAGES),
             work: Work::Idle,
         }
     }
@@ -445,17 +444,18 @@ impl Tracker {
     }
 
     /// One task period's share of the tracker's work, in a cycle of
-    /// [`TrackerDesign::interval_samples`] whose first [`TRACKER_STAGES`] task periods work: the
-    /// gates and the drift on `input` (the only stage that reads it), the measurement, the
-    /// correction and the low-pass to the drive, then, when that moved by more than
-    /// [`WRITE_THRESHOLD`], the new coefficients' decay and their weights, returned at the
-    /// last working stage; the cycle's other task periods do nothing. The stages compute the bits of [`Tracker::update`] then
-    /// [`Tracker::coefficients`], each about a fifth of their cost (a Cortex-M0 has no FPU:
-    /// docs/tracking.md, "Cost on the MCU").
+    /// [`TrackerDesign::interval_samples`] (in whole task periods, at least
+    /// [`TRACKER_STAGES`]) whose first [`TRACKER_STAGES`] task periods work: the gates
+    /// and the drift on `input` (the only stage that reads it), the measurement, the correction
+    /// and the low-pass to the drive, then, when that moved by more than [`WRITE_THRESHOLD`],
+    /// the new coefficients' decay and their weights, returned at the last working stage; the
+    /// cycle's other task periods do nothing. The stages compute the bits of
+    /// [`Tracker::update`] then [`Tracker::coefficients`], each about a fifth of their cost (a
+    /// Cortex-M0 has no FPU: docs/tracking.md, "Cost on the MCU").
     pub fn task_step(&mut self, input: &TrackerInput) -> Option<ModelCoefficients> {
-        let stage = u32::from(self.stage);
-        self.stage = if stage + 1 < u32::from(self.periods) {
-            self.stage + 1
+        let stage = self.stage;
+        self.stage = if stage + 1 < self.cycle_periods {
+            stage + 1
         } else {
             0
         };

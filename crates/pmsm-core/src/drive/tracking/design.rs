@@ -69,9 +69,8 @@ impl TrackerDesign {
     /// An update every twice [`TRACKER_STAGES`](super::TRACKER_STAGES) task periods (the
     /// drive's [`Tracker::task_step`](super::Tracker::task_step) works in the first half of
     /// each cycle: half the task's mean cost of a working cycle on a Cortex-M0, whose `f32` is
-    /// software); learning above 10 % of `ω_b`,
-    /// the current within 0.2 `I_b` of its reference, the speed changing by less than `2 ω_b`
-    /// per second, 10 ms after entering `Run`; the model's `R` within ±50 %, `ψ` within ±30 %
+    /// software); learning above 10 % of `ω_b`, the current within 0.2 `I_b` of its reference,
+    /// the speed changing by less than `2 ω_b` per second, 10 ms after entering `Run`; the model's `R` within ±50 %, `ψ` within ±30 %
     /// (one standard deviation), kept within ×0.5…×2 and ±40 %; copper and NdFeB; 10 K/√s; 1 %
     /// of the base voltage of noise; 1 % per update at most; 20 ms of low-pass to the drive;
     /// the current's motion (low-passed over 4 ms) weighted 10 times; no inverter gate (see

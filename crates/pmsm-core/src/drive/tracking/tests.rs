@@ -558,7 +558,7 @@ fn the_task_s_stages_are_one_update_and_its_write() {
     let (mut whole, r) = setup(|_| {});
     let mut staged = whole;
     // The default cycle: twice the working stages.
-    let periods = u32::from(staged.periods);
+    let periods = staged.cycle_periods;
     assert_eq!(periods, 2 * TRACKER_STAGES);
     let mut theta = 0.3;
     let mut writes = 0;
